@@ -1,0 +1,1 @@
+//! tridem DEM

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Every check CI makes: formatting, clippy with warnings as errors, and all tests
+# (multi-rank ones included: they start mpirun themselves). Installs what is missing first.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/env.sh
+scripts/install-deps.sh
+rustup component add rustfmt clippy >/dev/null 2>&1 || true
+echo "== cargo fmt --check"
+cargo fmt --all -- --check
+echo "== cargo clippy"
+cargo clippy --workspace --all-targets --release -- -D warnings
+echo "== cargo test"
+cargo test --workspace --release

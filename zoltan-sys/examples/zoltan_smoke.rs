@@ -1,0 +1,43 @@
+//! Run under mpirun by zoltan-sys's tests: Zoltan_Initialize, the id-type check,
+//! Zoltan_Create on MPI_COMM_WORLD, a parameter set, Zoltan_Destroy.
+use mpi::traits::*;
+use mpi_harness::Reporter;
+use std::ffi::{CStr, CString};
+use zoltan_sys::*;
+
+fn main() {
+    let universe = mpi::initialize().expect("MPI init");
+    let world = universe.world();
+    let mut out = Reporter::new(world.rank() as usize);
+
+    let mut version = 0f32;
+    let rc = unsafe { Zoltan_Initialize(0, std::ptr::null_mut(), &mut version) };
+    out.kv("initialize_rc", rc);
+    out.kv("zoltan_version", version);
+
+    let mut name: *mut std::os::raw::c_char = std::ptr::null_mut();
+    let id_size = unsafe { Zoltan_get_global_id_type(&mut name) };
+    out.kv("library_id_size", id_size);
+    out.kv("bindings_id_size", BINDINGS_ID_TYPE_SIZE);
+    if !name.is_null() {
+        out.kv(
+            "id_type_name",
+            unsafe { CStr::from_ptr(name) }.to_string_lossy(),
+        );
+    }
+
+    let mut zz = unsafe { Zoltan_Create(world.as_raw()) };
+    out.kv("created", !zz.is_null());
+    let key = CString::new("DEBUG_LEVEL").unwrap();
+    let val = CString::new("0").unwrap();
+    out.kv("set_param_rc", unsafe {
+        Zoltan_Set_Param(zz, key.as_ptr(), val.as_ptr())
+    });
+    let bad = CString::new("NO_SUCH_PARAMETER").unwrap();
+    out.kv("bad_param_rc", unsafe {
+        Zoltan_Set_Param(zz, bad.as_ptr(), val.as_ptr())
+    });
+    unsafe { Zoltan_Destroy(&mut zz) };
+    out.kv("destroyed_to_null", zz.is_null());
+    out.kv("ranks", world.size());
+}

@@ -1,0 +1,1 @@
+#include <zoltan.h>
