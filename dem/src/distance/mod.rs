@@ -1,0 +1,64 @@
+//! Minimum distance between two triangles, with the closest points.
+//!
+//! Three methods, all in f64:
+//! - [`distance_triangle_triangle`]: exact brute force over the 15 feature pairs
+//!   plus an intersection test. The reference for the others.
+//! - [`penalty`]: Newton on the penalty formulation, on SIMD batches of pairs,
+//!   finished exactly on the feature pair it identifies and checked by a
+//!   certificate that bounds its error.
+//! - [`hybrid`]: penalty per batch, with the batch recomputed by brute force when
+//!   any of its pairs was not certified.
+//!
+//! The math is in `docs/distance.md`.
+
+mod closest_point_segment_segment;
+mod closest_point_triangle;
+mod distance_triangle_triangle;
+
+pub use closest_point_segment_segment::closest_points_segment_segment;
+pub use closest_point_triangle::closest_point_triangle;
+pub use distance_triangle_triangle::distance_triangle_triangle;
+
+use glam::DVec3;
+
+/// A triangle by its three vertices. Orientation does not matter here.
+pub type Triangle = [DVec3; 3];
+
+/// Which computation produced an answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Solver {
+    Penalty,
+    Brute,
+}
+
+impl Solver {
+    pub fn name(self) -> &'static str {
+        match self {
+            Solver::Penalty => "penalty",
+            Solver::Brute => "brute",
+        }
+    }
+}
+
+/// The minimum distance between two triangles and where it is attained.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Closest {
+    pub distance: f64,
+    /// Closest point on the first triangle.
+    pub p: DVec3,
+    /// Closest point on the second triangle.
+    pub q: DVec3,
+    pub solver: Solver,
+}
+
+/// Length of the diagonal of the bounding box of both triangles: the scale that
+/// every tolerance in this module is relative to.
+pub fn pair_scale(a: &Triangle, b: &Triangle) -> f64 {
+    let mut lo = a[0];
+    let mut hi = a[0];
+    for v in a.iter().chain(b.iter()) {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    (hi - lo).length()
+}

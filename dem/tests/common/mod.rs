@@ -1,0 +1,94 @@
+//! Shared by the integration tests: the hard cases of ../shared/cases.
+#![allow(dead_code)]
+
+use dem::distance::Triangle;
+use glam::DVec3;
+use std::path::PathBuf;
+
+pub struct Case {
+    pub category: String,
+    pub line: usize,
+    pub a: Triangle,
+    pub b: Triangle,
+    pub reference: f64,
+}
+
+/// Where the shared hard cases live: `$TRIDEM_CASES` or `../shared/cases` next to the checkout.
+pub fn cases_path() -> PathBuf {
+    if let Ok(p) = std::env::var("TRIDEM_CASES") {
+        return PathBuf::from(p);
+    }
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/cases/triangle-pairs.csv")
+}
+
+pub fn load_cases() -> Vec<Case> {
+    let path = cases_path();
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let mut category = String::from("uncategorised");
+    let mut cases = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if let Some(c) = line.strip_prefix("# category:") {
+            category = c.trim().to_string();
+            continue;
+        }
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|f| f.trim().parse().unwrap_or_else(|_| panic!("line {}: {f}", i + 1)))
+            .collect();
+        assert_eq!(v.len(), 19, "line {}", i + 1);
+        let p = |k: usize| DVec3::new(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
+        cases.push(Case {
+            category: category.clone(),
+            line: i + 1,
+            a: [p(0), p(1), p(2)],
+            b: [p(3), p(4), p(5)],
+            reference: v[18],
+        });
+    }
+    assert!(cases.len() > 1000, "only {} cases in {}", cases.len(), path.display());
+    cases
+}
+
+/// Distance from `p` to triangle `t`, computed relative to the triangle's first
+/// vertex so that the check is as accurate as the thing it checks.
+pub fn offset_from_triangle(p: DVec3, t: &Triangle) -> f64 {
+    let o = t[0];
+    let local = [DVec3::ZERO, t[1] - o, t[2] - o];
+    let x = p - o;
+    // Both are points of the triangle; on a sliver the projection is the less
+    // accurate one, on its edges the boundary is exact.
+    let face = (dem::distance::closest_point_triangle(x, &local) - x).length();
+    let edges = (0..3)
+        .map(|i| {
+            let (_, _, c, _) = dem::distance::closest_points_segment_segment(
+                local[i],
+                local[(i + 1) % 3],
+                x,
+                x,
+            );
+            (c - x).length()
+        })
+        .fold(f64::INFINITY, f64::min);
+    face.min(edges)
+}
+
+/// How far a returned closest point may sit from its triangle.
+///
+/// 1e-12 L, plus what is not the kernel's: a point is returned in absolute
+/// coordinates, so it cannot be closer than a few ulps of the largest coordinate.
+pub fn membership_tolerance(c: &Case) -> f64 {
+    let l = dem::distance::pair_scale(&c.a, &c.b);
+    let max_coord = c
+        .a
+        .iter()
+        .chain(c.b.iter())
+        .map(|v| v.abs().max_element())
+        .fold(0.0, f64::max);
+    let ulps = 8.0 * f64::EPSILON * max_coord;
+    1e-12 * l + ulps
+}
