@@ -49,7 +49,11 @@ pub fn normal(t: &[DVec3; 3]) -> DVec3 {
     let e0 = t[1] - t[0];
     let e1 = t[2] - t[1];
     let e2 = t[0] - t[2];
-    let (l0, l1, l2) = (e0.length_squared(), e1.length_squared(), e2.length_squared());
+    let (l0, l1, l2) = (
+        e0.length_squared(),
+        e1.length_squared(),
+        e2.length_squared(),
+    );
     // The largest angle is opposite the longest edge; use the other two.
     if l0 >= l1 && l0 >= l2 {
         e1.cross(e2)
@@ -85,9 +89,18 @@ mod tests {
     #[test]
     fn regions() {
         let t = tri();
-        assert_eq!(closest_point_triangle(DVec3::new(0.2, 0.2, 3.0), &t), DVec3::new(0.2, 0.2, 0.0));
-        assert_eq!(closest_point_triangle(DVec3::new(-1.0, -1.0, 1.0), &t), DVec3::ZERO);
-        assert_eq!(closest_point_triangle(DVec3::new(0.5, -2.0, 0.0), &t), DVec3::new(0.5, 0.0, 0.0));
+        assert_eq!(
+            closest_point_triangle(DVec3::new(0.2, 0.2, 3.0), &t),
+            DVec3::new(0.2, 0.2, 0.0)
+        );
+        assert_eq!(
+            closest_point_triangle(DVec3::new(-1.0, -1.0, 1.0), &t),
+            DVec3::ZERO
+        );
+        assert_eq!(
+            closest_point_triangle(DVec3::new(0.5, -2.0, 0.0), &t),
+            DVec3::new(0.5, 0.0, 0.0)
+        );
         let c = closest_point_triangle(DVec3::new(1.0, 1.0, 0.0), &t);
         assert!((c - DVec3::new(0.5, 0.5, 0.0)).length() < 1e-15);
     }

@@ -74,11 +74,7 @@ fn edge_piercing(s: &Triangle, t: &Triangle) -> Option<DVec3> {
     if n == DVec3::ZERO {
         return None;
     }
-    let side = [
-        n.dot(s[0] - t[0]),
-        n.dot(s[1] - t[0]),
-        n.dot(s[2] - t[0]),
-    ];
+    let side = [n.dot(s[0] - t[0]), n.dot(s[1] - t[0]), n.dot(s[2] - t[0])];
     for i in 0..3 {
         let j = (i + 1) % 3;
         let (h0, h1) = (side[i], side[j]);

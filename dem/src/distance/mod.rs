@@ -11,13 +11,25 @@
 //!
 //! The math is in `docs/distance.md`.
 
+mod certificate;
 mod closest_point_segment_segment;
 mod closest_point_triangle;
 mod distance_triangle_triangle;
+mod finish;
+pub mod hybrid;
+pub mod penalty;
 
+pub use certificate::certified_error_bound;
 pub use closest_point_segment_segment::closest_points_segment_segment;
 pub use closest_point_triangle::closest_point_triangle;
 pub use distance_triangle_triangle::distance_triangle_triangle;
+pub use hybrid::{
+    distance_many, distances, Counts, Fallback, Method, Options, Schedule, Threading,
+};
+pub use penalty::{
+    penalty_many, penalty_many_on, penalty_scalar, Isa, PenaltyParams, PenaltyStats,
+    UnsupportedBatch,
+};
 
 use glam::DVec3;
 

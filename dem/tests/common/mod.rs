@@ -38,7 +38,11 @@ pub fn load_cases() -> Vec<Case> {
         }
         let v: Vec<f64> = line
             .split(',')
-            .map(|f| f.trim().parse().unwrap_or_else(|_| panic!("line {}: {f}", i + 1)))
+            .map(|f| {
+                f.trim()
+                    .parse()
+                    .unwrap_or_else(|_| panic!("line {}: {f}", i + 1))
+            })
             .collect();
         assert_eq!(v.len(), 19, "line {}", i + 1);
         let p = |k: usize| DVec3::new(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
@@ -50,7 +54,12 @@ pub fn load_cases() -> Vec<Case> {
             reference: v[18],
         });
     }
-    assert!(cases.len() > 1000, "only {} cases in {}", cases.len(), path.display());
+    assert!(
+        cases.len() > 1000,
+        "only {} cases in {}",
+        cases.len(),
+        path.display()
+    );
     cases
 }
 
@@ -65,12 +74,8 @@ pub fn offset_from_triangle(p: DVec3, t: &Triangle) -> f64 {
     let face = (dem::distance::closest_point_triangle(x, &local) - x).length();
     let edges = (0..3)
         .map(|i| {
-            let (_, _, c, _) = dem::distance::closest_points_segment_segment(
-                local[i],
-                local[(i + 1) % 3],
-                x,
-                x,
-            );
+            let (_, _, c, _) =
+                dem::distance::closest_points_segment_segment(local[i], local[(i + 1) % 3], x, x);
             (c - x).length()
         })
         .fold(f64::INFINITY, f64::min);
@@ -83,12 +88,11 @@ pub fn offset_from_triangle(p: DVec3, t: &Triangle) -> f64 {
 /// coordinates, so it cannot be closer than a few ulps of the largest coordinate.
 pub fn membership_tolerance(c: &Case) -> f64 {
     let l = dem::distance::pair_scale(&c.a, &c.b);
-    let max_coord = c
-        .a
-        .iter()
-        .chain(c.b.iter())
-        .map(|v| v.abs().max_element())
-        .fold(0.0, f64::max);
+    let max_coord =
+        c.a.iter()
+            .chain(c.b.iter())
+            .map(|v| v.abs().max_element())
+            .fold(0.0, f64::max);
     let ulps = 8.0 * f64::EPSILON * max_coord;
     1e-12 * l + ulps
 }

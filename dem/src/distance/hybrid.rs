@@ -1,0 +1,223 @@
+//! The hybrid method and the multi-core driver for all three methods.
+//!
+//! Hybrid: the penalty kernel runs on a batch; if any pair of the batch was not
+//! certified, the batch is recomputed by brute force ([`Fallback::WholeBatch`],
+//! the published rule), or only its uncertified pairs are
+//! ([`Fallback::FailedPairs`]). Either way every hybrid answer is within the
+//! certificate's tolerance of the exact one, or is the brute-force answer.
+//!
+//! Threads: rayon over batches, with OpenMP-like static scheduling (equal
+//! contiguous chunks, one per thread) or dynamic scheduling (chunks of `grain`
+//! batches taken on demand).
+
+use super::penalty::{dummy_closest, penalty_many, PenaltyParams, PenaltyStats, UnsupportedBatch};
+use super::{distance_triangle_triangle, Closest, Triangle};
+use rayon::prelude::*;
+
+/// Which computation answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    Brute,
+    Penalty,
+    Hybrid,
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "brute" => Ok(Method::Brute),
+            "penalty" => Ok(Method::Penalty),
+            "hybrid" => Ok(Method::Hybrid),
+            _ => Err(format!("unknown method `{s}` (brute, penalty, hybrid)")),
+        }
+    }
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Brute => "brute",
+            Method::Penalty => "penalty",
+            Method::Hybrid => "hybrid",
+        }
+    }
+}
+
+/// What the hybrid recomputes by brute force when a batch has uncertified pairs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Fallback {
+    /// The whole batch (the published kernel).
+    #[default]
+    WholeBatch,
+    /// Only the uncertified pairs.
+    FailedPairs,
+}
+
+/// How batches are spread over threads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Schedule {
+    /// Equal contiguous chunks, one per thread (OpenMP `schedule(static)`).
+    #[default]
+    Static,
+    /// Chunks of `grain` batches taken on demand (OpenMP `schedule(dynamic, grain)`).
+    Dynamic,
+}
+
+impl std::str::FromStr for Schedule {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "static" => Ok(Schedule::Static),
+            "dynamic" => Ok(Schedule::Dynamic),
+            _ => Err(format!("unknown schedule `{s}` (static, dynamic)")),
+        }
+    }
+}
+
+/// Threading of a call to [`distance_many`]. It runs in the current rayon pool:
+/// install a pool of the wanted size around the call to choose the thread count.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Threading {
+    pub schedule: Schedule,
+    /// Batches per chunk for dynamic scheduling.
+    pub grain: usize,
+}
+
+impl Default for Threading {
+    fn default() -> Self {
+        Threading {
+            schedule: Schedule::Static,
+            grain: 16,
+        }
+    }
+}
+
+/// Options of [`distance_many`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    pub method: Method,
+    /// Pairs per batch: one of 1, 2, 4, 8, 16, 32, 64.
+    pub batch: usize,
+    pub penalty: PenaltyParams,
+    pub fallback: Fallback,
+    pub threading: Threading,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            method: Method::Hybrid,
+            batch: 8,
+            penalty: PenaltyParams::default(),
+            fallback: Fallback::WholeBatch,
+            threading: Threading::default(),
+        }
+    }
+}
+
+/// Counts of one call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Counts {
+    pub pairs: usize,
+    /// Pairs the penalty kernel certified.
+    pub certified: usize,
+    /// Pairs whose answer was recomputed by brute force (hybrid).
+    pub fallback_pairs: usize,
+    /// Batches that fell back (hybrid).
+    pub fallback_batches: usize,
+}
+
+impl std::ops::Add for Counts {
+    type Output = Counts;
+    fn add(self, o: Counts) -> Counts {
+        Counts {
+            pairs: self.pairs + o.pairs,
+            certified: self.certified + o.certified,
+            fallback_pairs: self.fallback_pairs + o.fallback_pairs,
+            fallback_batches: self.fallback_batches + o.fallback_batches,
+        }
+    }
+}
+
+/// Distance of every pair by the chosen method, on the current rayon pool.
+/// `out` and `stats` must have the length of `pairs`; `stats` is filled for the
+/// penalty and hybrid methods.
+pub fn distance_many(
+    pairs: &[(Triangle, Triangle)],
+    opts: &Options,
+    out: &mut [Closest],
+    stats: &mut [PenaltyStats],
+) -> Result<Counts, UnsupportedBatch> {
+    assert_eq!(pairs.len(), out.len());
+    assert_eq!(pairs.len(), stats.len());
+    if !super::penalty::BATCH_SIZES.contains(&opts.batch) {
+        return Err(UnsupportedBatch(opts.batch));
+    }
+    let n_batches = pairs.len().div_ceil(opts.batch);
+    let chunk_batches = match opts.threading.schedule {
+        Schedule::Static => n_batches.div_ceil(rayon::current_num_threads()).max(1),
+        Schedule::Dynamic => opts.threading.grain.max(1),
+    };
+    let chunk = chunk_batches * opts.batch;
+    let counts = pairs
+        .par_chunks(chunk)
+        .zip(out.par_chunks_mut(chunk))
+        .zip(stats.par_chunks_mut(chunk))
+        .with_max_len(1)
+        .map(|((p, o), s)| serial_chunk(p, opts, o, s))
+        .reduce(Counts::default, |a, b| a + b);
+    Ok(counts)
+}
+
+/// One thread's share, batch by batch.
+fn serial_chunk(
+    pairs: &[(Triangle, Triangle)],
+    opts: &Options,
+    out: &mut [Closest],
+    stats: &mut [PenaltyStats],
+) -> Counts {
+    let mut counts = Counts {
+        pairs: pairs.len(),
+        ..Counts::default()
+    };
+    match opts.method {
+        Method::Brute => {
+            for ((a, b), o) in pairs.iter().zip(out.iter_mut()) {
+                *o = distance_triangle_triangle(a, b);
+            }
+        }
+        Method::Penalty | Method::Hybrid => {
+            for ((p, o), s) in pairs
+                .chunks(opts.batch)
+                .zip(out.chunks_mut(opts.batch))
+                .zip(stats.chunks_mut(opts.batch))
+            {
+                penalty_many(p, opts.batch, &opts.penalty, o, s).expect("batch size checked");
+                let certified = s.iter().filter(|x| x.converged).count();
+                counts.certified += certified;
+                if opts.method == Method::Hybrid && certified < p.len() {
+                    counts.fallback_batches += 1;
+                    for ((a, b), (o, s)) in p.iter().zip(o.iter_mut().zip(s.iter())) {
+                        if opts.fallback == Fallback::WholeBatch || !s.converged {
+                            *o = distance_triangle_triangle(a, b);
+                            counts.fallback_pairs += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    counts
+}
+
+/// Convenience: distances of all pairs with default options and fresh buffers.
+pub fn distances(
+    pairs: &[(Triangle, Triangle)],
+    opts: &Options,
+) -> Result<(Vec<Closest>, Vec<PenaltyStats>, Counts), UnsupportedBatch> {
+    let mut out = vec![dummy_closest(); pairs.len()];
+    let mut stats = vec![PenaltyStats::default(); pairs.len()];
+    let counts = distance_many(pairs, opts, &mut out, &mut stats)?;
+    Ok((out, stats, counts))
+}

@@ -1,0 +1,88 @@
+//! Penalty and hybrid on every hard case of ../shared/cases/triangle-pairs.csv.
+mod common;
+
+use dem::distance::{distances, pair_scale, Fallback, Method, Options, Triangle};
+use std::collections::BTreeMap;
+
+fn pairs(cases: &[common::Case]) -> Vec<(Triangle, Triangle)> {
+    cases.iter().map(|c| (c.a, c.b)).collect()
+}
+
+#[test]
+fn hybrid_matches_references_on_every_case_for_every_batch_size_and_fallback() {
+    let cases = common::load_cases();
+    let pairs = pairs(&cases);
+    for batch in [1, 8, 64] {
+        for fallback in [Fallback::WholeBatch, Fallback::FailedPairs] {
+            let opts = Options {
+                method: Method::Hybrid,
+                batch,
+                fallback,
+                ..Options::default()
+            };
+            let (out, _, _) = distances(&pairs, &opts).unwrap();
+            let mut failures = Vec::new();
+            for (c, r) in cases.iter().zip(&out) {
+                let l = pair_scale(&c.a, &c.b);
+                let tol = common::membership_tolerance(c);
+                let err = (r.distance - c.reference).abs();
+                let p_off = common::offset_from_triangle(r.p, &c.a);
+                let q_off = common::offset_from_triangle(r.q, &c.b);
+                let pq = ((r.p - r.q).length() - r.distance).abs();
+                if !(err <= 1e-12 * l && p_off <= tol && q_off <= tol && pq <= tol) {
+                    failures.push(format!(
+                        "line {} [{}] by {}: got {:e}, reference {:e}, err/L {:e}, P off/L {:e}, Q off/L {:e}",
+                        c.line, c.category, r.solver.name(), r.distance, c.reference, err / l, p_off / l, q_off / l
+                    ));
+                }
+            }
+            assert!(
+                failures.is_empty(),
+                "batch {batch}, {fallback:?}: {} failures:\n{}",
+                failures.len(),
+                failures.join("\n")
+            );
+        }
+    }
+}
+
+/// Penalty answers are always finite, and a pair reported as converged is
+/// within the certified tolerance of the reference: never a wrong answer
+/// marked as converged, in any category (parallel faces included).
+#[test]
+fn penalty_is_finite_and_never_wrong_when_it_claims_convergence() {
+    let cases = common::load_cases();
+    let pairs = pairs(&cases);
+    let opts = Options {
+        method: Method::Penalty,
+        ..Options::default()
+    };
+    let (out, stats, _) = distances(&pairs, &opts).unwrap();
+    let mut per_category: BTreeMap<&str, (usize, usize, f64)> = BTreeMap::new();
+    for ((c, r), s) in cases.iter().zip(&out).zip(&stats) {
+        let l = pair_scale(&c.a, &c.b);
+        assert!(r.distance.is_finite(), "line {}: penalty gave {:?}", c.line, r);
+        let rel_err = (r.distance - c.reference).abs() / l;
+        if s.converged {
+            // Certified to tol = 1e-13 L, plus the rounding of the reference comparison.
+            assert!(
+                rel_err <= 2e-13,
+                "line {} [{}]: converged but error {:e} L",
+                c.line,
+                c.category,
+                rel_err
+            );
+        }
+        let e = per_category.entry(c.category.as_str()).or_default();
+        e.0 += 1;
+        e.1 += s.converged as usize;
+        e.2 = e.2.max(rel_err);
+    }
+    eprintln!("category            pairs  certified  max error / L (all pairs)");
+    for (cat, (n, conv, max_err)) in &per_category {
+        eprintln!("{cat:<18} {n:>6} {conv:>10}  {max_err:e}");
+    }
+    // The kernel must be useful, not only safe: most random pairs are certified.
+    let (n, conv, _) = per_category["random_unit"];
+    assert!(conv * 2 > n, "only {conv} of {n} random pairs certified");
+}
