@@ -61,7 +61,12 @@ fn penalty_is_finite_and_never_wrong_when_it_claims_convergence() {
     let mut per_category: BTreeMap<&str, (usize, usize, f64)> = BTreeMap::new();
     for ((c, r), s) in cases.iter().zip(&out).zip(&stats) {
         let l = pair_scale(&c.a, &c.b);
-        assert!(r.distance.is_finite(), "line {}: penalty gave {:?}", c.line, r);
+        assert!(
+            r.distance.is_finite(),
+            "line {}: penalty gave {:?}",
+            c.line,
+            r
+        );
         let rel_err = (r.distance - c.reference).abs() / l;
         if s.converged {
             // Certified to tol = 1e-13 L, plus the rounding of the reference comparison.

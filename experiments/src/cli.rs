@@ -1,6 +1,8 @@
 //! Command-line interface: one subcommand per experiment.
 
 use clap::{Args, Parser, Subcommand};
+use dem::distance::{Method, Schedule};
+use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -17,6 +19,10 @@ pub struct Cli {
 pub enum Command {
     /// Print the versions of Zoltan, MPI, HDF5 and METIS, and the ranks and threads in use.
     Info(InfoArgs),
+    /// Distance between triangle pairs read as CSV (18 numbers per row) from FILE or stdin.
+    Distance(DistanceArgs),
+    /// Benchmark the triangle-distance kernels, or sweep accuracy against time (--accuracy).
+    Kernels(KernelsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -24,4 +30,49 @@ pub struct InfoArgs {
     /// Print as one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct DistanceArgs {
+    /// brute, penalty or hybrid.
+    #[arg(long, default_value = "hybrid")]
+    pub method: Method,
+    /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
+    #[arg(long, default_value_t = 8)]
+    pub batch: usize,
+    /// CSV input; stdin when absent.
+    pub file: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct KernelsArgs {
+    /// Number of random pairs (vertices uniform in the unit cube).
+    #[arg(long, default_value_t = 1_000_000)]
+    pub pairs: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// static or dynamic.
+    #[arg(long, default_value = "static")]
+    pub schedule: Schedule,
+    /// Batches per chunk with dynamic scheduling.
+    #[arg(long, default_value_t = 16)]
+    pub grain: usize,
+    /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
+    #[arg(long, default_value_t = 8)]
+    pub batch: usize,
+    /// Timed repetitions per measurement (the median is reported).
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// Print a JSON array instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Sweep iterations, penalty r, tolerance and batch size: error against time.
+    #[arg(long)]
+    pub accuracy: bool,
+    /// Where --accuracy writes its CSV and SVG plot.
+    #[arg(long, default_value = "out/kernels")]
+    pub output: PathBuf,
 }

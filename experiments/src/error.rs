@@ -10,6 +10,14 @@ pub struct CliError {
 }
 
 impl CliError {
+    /// Bad input (file, CSV, scene, option value): exit code 2.
+    pub fn input(message: impl Into<String>) -> Self {
+        CliError {
+            message: message.into(),
+            code: 2,
+        }
+    }
+
     /// Failure of the run itself (library, I/O): exit code 1.
     pub fn runtime(message: impl Into<String>) -> Self {
         CliError {

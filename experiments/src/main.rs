@@ -1,8 +1,12 @@
 //! `tridem`: the command-line tool of the tridem project.
 
 mod cli;
+mod distance_cmd;
 mod error;
 mod info;
+mod kernels;
+mod pairs_csv;
+mod plot;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -11,6 +15,8 @@ fn main() -> ExitCode {
     let cli = cli::Cli::parse();
     let result = match cli.command {
         cli::Command::Info(args) => info::run(&args),
+        cli::Command::Distance(args) => distance_cmd::run(&args),
+        cli::Command::Kernels(args) => kernels::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

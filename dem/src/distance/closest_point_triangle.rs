@@ -12,18 +12,27 @@ use glam::DVec3;
 /// boundary branch already handles, so degenerate input never divides by zero.
 #[inline]
 pub fn closest_point_triangle(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
+    project_inside(p, t, usable_normal(t)).unwrap_or_else(|| closest_on_boundary(p, t))
+}
+
+/// The triangle's normal when it carries information, `None` for a triangle
+/// that is flat to rounding (then only its edges matter).
+#[inline]
+pub fn usable_normal(t: &[DVec3; 3]) -> Option<DVec3> {
     let n = normal(t);
     let nn = n.length_squared();
-    if nn > 0.0 && !is_flat(t, nn) {
-        let inside = (0..3).all(|i| {
-            let (a, b) = (t[i], t[(i + 1) % 3]);
-            n.dot((b - a).cross(p - a)) >= 0.0
-        });
-        if inside {
-            return p - n * (n.dot(p - t[0]) / nn);
-        }
-    }
-    closest_on_boundary(p, t)
+    (nn > 0.0 && !is_flat(t, nn)).then_some(n)
+}
+
+/// The projection of `p` onto the plane of `t` if it falls inside `t`.
+#[inline]
+pub fn project_inside(p: DVec3, t: &[DVec3; 3], n: Option<DVec3>) -> Option<DVec3> {
+    let n = n?;
+    let inside = (0..3).all(|i| {
+        let (a, b) = (t[i], t[(i + 1) % 3]);
+        n.dot((b - a).cross(p - a)) >= 0.0
+    });
+    inside.then(|| p - n * (n.dot(p - t[0]) / n.length_squared()))
 }
 
 /// The point of the triangle's boundary (its three edges) closest to `p`.

@@ -11,8 +11,8 @@
 //! from the origin become small differences, which are exact for nearby floats,
 //! so accuracy depends on the pair's own size, not on where it sits.
 
-use super::closest_point_triangle::normal;
-use super::{closest_point_triangle, closest_points_segment_segment, Closest, Solver, Triangle};
+use super::closest_point_triangle::{project_inside, usable_normal};
+use super::{closest_points_segment_segment, Closest, Solver, Triangle};
 use glam::DVec3;
 
 /// Minimum distance between triangles `a` and `b`, with closest points `p` on
@@ -42,11 +42,19 @@ fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
             pq = (p, q);
         }
     };
+    // A vertex against the other triangle's boundary is already covered by the
+    // edge-edge pairs (the vertex ends two edges), so only interior projections
+    // are new candidates.
+    let (na, nb) = (usable_normal(ta), usable_normal(tb));
     for &v in ta {
-        consider(v, closest_point_triangle(v, tb));
+        if let Some(q) = project_inside(v, tb, nb) {
+            consider(v, q);
+        }
     }
     for &v in tb {
-        consider(closest_point_triangle(v, ta), v);
+        if let Some(p) = project_inside(v, ta, na) {
+            consider(p, v);
+        }
     }
     for i in 0..3 {
         for j in 0..3 {
@@ -56,7 +64,7 @@ fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
         }
     }
     if best > 0.0 {
-        if let Some(x) = edge_piercing(ta, tb).or_else(|| edge_piercing(tb, ta)) {
+        if let Some(x) = edge_piercing(ta, tb, nb).or_else(|| edge_piercing(tb, ta, na)) {
             return (x, x);
         }
     }
@@ -69,11 +77,8 @@ fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
 /// vertex-triangle pair, already measured. Near the boundary of `t` the sign
 /// tests may go either way, but there an edge-edge pair is at distance zero to
 /// rounding, so the answer is the same.
-fn edge_piercing(s: &Triangle, t: &Triangle) -> Option<DVec3> {
-    let n = normal(t);
-    if n == DVec3::ZERO {
-        return None;
-    }
+fn edge_piercing(s: &Triangle, t: &Triangle, n: Option<DVec3>) -> Option<DVec3> {
+    let n = n?;
     let side = [n.dot(s[0] - t[0]), n.dot(s[1] - t[0]), n.dot(s[2] - t[0])];
     for i in 0..3 {
         let j = (i + 1) % 3;

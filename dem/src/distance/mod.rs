@@ -18,6 +18,7 @@ mod distance_triangle_triangle;
 mod finish;
 pub mod hybrid;
 pub mod penalty;
+mod random_pairs;
 
 pub use certificate::certified_error_bound;
 pub use closest_point_segment_segment::closest_points_segment_segment;
@@ -30,6 +31,7 @@ pub use penalty::{
     penalty_many, penalty_many_on, penalty_scalar, Isa, PenaltyParams, PenaltyStats,
     UnsupportedBatch,
 };
+pub use random_pairs::random_unit_pairs;
 
 use glam::DVec3;
 

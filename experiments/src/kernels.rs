@@ -1,0 +1,385 @@
+//! `tridem kernels`: the triangle-distance benchmark and the accuracy-vs-time sweep.
+//!
+//! Every number is measured in this run, side by side on the same pairs; times
+//! are medians over repetitions, so ratios between rows are what to read.
+
+use crate::cli::KernelsArgs;
+use crate::error::{CliError, CliResult};
+use crate::plot;
+use dem::distance::{
+    distances, pair_scale, penalty_many_on, penalty_scalar, random_unit_pairs, Closest, Fallback,
+    Isa, Method, Options, PenaltyParams, PenaltyStats, Schedule, Threading, Triangle,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+use std::time::Instant;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub method: String,
+    pub variant: String,
+    pub isa: String,
+    pub threads: usize,
+    pub schedule: String,
+    pub batch: usize,
+    pub ns_per_pair: f64,
+    pub fallback_rate: Option<f64>,
+    pub certified_rate: Option<f64>,
+}
+
+pub fn run(args: &KernelsArgs) -> CliResult {
+    if args.accuracy {
+        return accuracy_sweep(args);
+    }
+    let pairs = random_unit_pairs(args.pairs, args.seed);
+    let pool = pool(args.threads)?;
+    let threads = pool.current_num_threads();
+    let isa = Isa::detect();
+    let sched = args.schedule;
+    let sched_name = schedule_name(sched);
+    let threading = Threading {
+        schedule: sched,
+        grain: args.grain,
+    };
+    let opts = |method, fallback| Options {
+        method,
+        batch: args.batch,
+        fallback,
+        threading,
+        penalty: PenaltyParams::default(),
+    };
+    let mut rows = Vec::new();
+    let mut row = |method: &str,
+                   variant: &str,
+                   isa: &str,
+                   threads: usize,
+                   ns: f64,
+                   fb: Option<f64>,
+                   cert: Option<f64>| {
+        rows.push(Row {
+            method: method.into(),
+            variant: variant.into(),
+            isa: isa.into(),
+            threads,
+            schedule: if threads > 1 {
+                sched_name.into()
+            } else {
+                "serial".into()
+            },
+            batch: args.batch,
+            ns_per_pair: ns,
+            fallback_rate: fb,
+            certified_rate: cert,
+        })
+    };
+
+    let n = pairs.len() as f64;
+    for (method, fallback, variant) in [
+        (Method::Brute, Fallback::WholeBatch, "exact"),
+        (Method::Penalty, Fallback::WholeBatch, "simd"),
+        (Method::Hybrid, Fallback::WholeBatch, "whole-batch fallback"),
+        (
+            Method::Hybrid,
+            Fallback::FailedPairs,
+            "failed-pairs fallback",
+        ),
+    ] {
+        let o = opts(method, fallback);
+        let mut counts = Default::default();
+        let ns = median_ns(args.repeat, pairs.len(), || {
+            pool.install(|| {
+                let (_, _, c) = distances(&pairs, &o).expect("batch size checked");
+                counts = c;
+            })
+        });
+        let fb = (method == Method::Hybrid).then(|| counts.fallback_pairs as f64 / n);
+        let cert = (method != Method::Brute).then(|| counts.certified as f64 / n);
+        row(method.name(), variant, isa.name(), threads, ns, fb, cert);
+    }
+
+    // SIMD against scalar: one thread, the same kernel.
+    let prm = PenaltyParams::default();
+    let mut out = vec![placeholder(); pairs.len()];
+    let mut stats = vec![PenaltyStats::default(); pairs.len()];
+    for chosen in [isa, Isa::Baseline] {
+        let ns = median_ns(args.repeat, pairs.len(), || {
+            penalty_many_on(&pairs, args.batch, &prm, chosen, &mut out, &mut stats).expect("batch");
+        });
+        row(
+            "penalty",
+            "simd, 1 thread",
+            chosen.name(),
+            1,
+            ns,
+            None,
+            None,
+        );
+        if chosen == Isa::Baseline {
+            break;
+        }
+    }
+    let ns = median_ns(args.repeat, pairs.len(), || {
+        for (a, b) in &pairs {
+            std::hint::black_box(penalty_scalar(a, b, &prm));
+        }
+    });
+    row("penalty", "scalar, 1 thread", "baseline", 1, ns, None, None);
+
+    // Thread scaling of the hybrid, measured in the same run.
+    if threads > 1 {
+        let single = pool_of(1)?;
+        let o = opts(Method::Hybrid, Fallback::WholeBatch);
+        let ns = median_ns(args.repeat, pairs.len(), || {
+            single.install(|| {
+                distances(&pairs, &o).expect("batch");
+            })
+        });
+        row(
+            "hybrid",
+            "whole-batch fallback",
+            isa.name(),
+            1,
+            ns,
+            None,
+            None,
+        );
+    }
+
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&rows).expect("rows serialise")
+        );
+    } else {
+        print_table(&rows, args.pairs, args.seed);
+    }
+    Ok(())
+}
+
+fn print_table(rows: &[Row], pairs: usize, seed: u64) {
+    println!("{pairs} random pairs in the unit cube (seed {seed}); median ns per pair");
+    println!(
+        "{:<8} {:<22} {:<9} {:>7} {:<8} {:>5} {:>11} {:>9} {:>9}",
+        "method",
+        "variant",
+        "isa",
+        "threads",
+        "schedule",
+        "batch",
+        "ns/pair",
+        "fallback",
+        "certified"
+    );
+    for r in rows {
+        let pct = |x: Option<f64>| {
+            x.map(|v| format!("{:.1}%", 100.0 * v))
+                .unwrap_or_else(|| "-".into())
+        };
+        println!(
+            "{:<8} {:<22} {:<9} {:>7} {:<8} {:>5} {:>11.1} {:>9} {:>9}",
+            r.method,
+            r.variant,
+            r.isa,
+            r.threads,
+            r.schedule,
+            r.batch,
+            r.ns_per_pair,
+            pct(r.fallback_rate),
+            pct(r.certified_rate)
+        );
+    }
+    let find = |m: &str, v: &str, t: Option<usize>| {
+        rows.iter()
+            .find(|r| r.method == m && r.variant == v && t.is_none_or(|t| r.threads == t))
+            .map(|r| r.ns_per_pair)
+    };
+    if let (Some(simd), Some(scalar)) = (
+        find("penalty", "simd, 1 thread", None),
+        find("penalty", "scalar, 1 thread", None),
+    ) {
+        println!(
+            "SIMD speed-up of penalty over its scalar version: {:.2}x",
+            scalar / simd
+        );
+    }
+    let multi = rows.iter().find(|r| r.method == "hybrid" && r.threads > 1);
+    if let (Some(m), Some(one)) = (multi, find("hybrid", "whole-batch fallback", Some(1))) {
+        println!(
+            "hybrid, {} threads over 1 thread: {:.2}x",
+            m.threads,
+            one / m.ns_per_pair
+        );
+    }
+}
+
+fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
+    let pairs = random_unit_pairs(args.pairs, args.seed);
+    let pool = pool(args.threads.or(Some(1)))?;
+    let exact: Vec<Closest> = pool.install(|| {
+        distances(
+            &pairs,
+            &Options {
+                method: Method::Brute,
+                ..Options::default()
+            },
+        )
+        .expect("batch")
+        .0
+    });
+    let d = PenaltyParams::default();
+    let mut settings: Vec<(&str, PenaltyParams, usize)> = Vec::new();
+    for finish in [true, false] {
+        for it in 1..=8 {
+            let name = if finish {
+                "iterations"
+            } else {
+                "iterations, no finish"
+            };
+            settings.push((
+                name,
+                PenaltyParams {
+                    max_iterations: it,
+                    exact_finish: finish,
+                    ..d
+                },
+                8,
+            ));
+        }
+    }
+    for r in [1e2, 1e4, 1e6, 1e8, 1e10] {
+        settings.push(("penalty r", PenaltyParams { penalty: r, ..d }, 8));
+    }
+    for tol in [1e-6, 1e-8, 1e-10, 1e-12, 1e-13] {
+        settings.push(("tolerance", PenaltyParams { tol, ..d }, 8));
+    }
+    for b in [1, 2, 4, 8, 16, 32, 64] {
+        settings.push(("batch", d, b));
+    }
+    let bar = ProgressBar::new(settings.len() as u64).with_style(
+        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    let mut points = Vec::new();
+    let mut csv = String::from("sweep,iterations,penalty,tol,batch,exact_finish,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L\n");
+    for (sweep, prm, batch) in settings {
+        bar.set_message(sweep);
+        let o = |method| Options {
+            method,
+            batch,
+            penalty: prm,
+            fallback: Fallback::WholeBatch,
+            threading: Threading::default(),
+        };
+        let mut pen = Vec::new();
+        let mut cert = 0;
+        let pen_ns = median_ns(args.repeat, pairs.len(), || {
+            pool.install(|| {
+                let (out, _, c) = distances(&pairs, &o(Method::Penalty)).expect("batch");
+                cert = c.certified;
+                pen = out;
+            })
+        });
+        let mut hyb = Vec::new();
+        let mut fb = 0;
+        let hyb_ns = median_ns(args.repeat, pairs.len(), || {
+            pool.install(|| {
+                let (out, _, c) = distances(&pairs, &o(Method::Hybrid)).expect("batch");
+                fb = c.fallback_pairs;
+                hyb = out;
+            })
+        });
+        let mut errs = rel_errors(&pairs, &pen, &exact);
+        let hyb_max = rel_errors(&pairs, &hyb, &exact)
+            .into_iter()
+            .fold(0.0, f64::max);
+        errs.sort_by(f64::total_cmp);
+        let max = *errs.last().unwrap_or(&0.0);
+        let median = errs.get(errs.len() / 2).copied().unwrap_or(0.0);
+        let n = pairs.len() as f64;
+        csv.push_str(&format!(
+            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{max:e},{median:e},{:.4},{:.4},{hyb_max:e}\n",
+            prm.max_iterations, prm.penalty, prm.tol, prm.exact_finish, cert as f64 / n, fb as f64 / n
+        ));
+        points.push(plot::Point {
+            series: sweep.to_string(),
+            x: pen_ns,
+            y: max,
+            label: label(sweep, &prm, batch),
+        });
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let dir = &args.output;
+    std::fs::create_dir_all(dir)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
+    let csv_path = dir.join("kernels-accuracy.csv");
+    std::fs::write(&csv_path, &csv)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", csv_path.display())))?;
+    let svg_path = dir.join("kernels-accuracy.svg");
+    plot::error_vs_time(&svg_path, &points, args.pairs)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", svg_path.display())))?;
+    print!("{csv}");
+    eprintln!("wrote {} and {}", csv_path.display(), svg_path.display());
+    Ok(())
+}
+
+fn label(sweep: &str, p: &PenaltyParams, batch: usize) -> String {
+    match sweep {
+        "penalty r" => format!("r={:e}", p.penalty),
+        "tolerance" => format!("tol={:e}", p.tol),
+        "batch" => format!("N={batch}"),
+        _ => format!("{}", p.max_iterations),
+    }
+}
+
+fn rel_errors(pairs: &[(Triangle, Triangle)], got: &[Closest], exact: &[Closest]) -> Vec<f64> {
+    pairs
+        .iter()
+        .zip(got.iter().zip(exact))
+        .map(|((a, b), (g, e))| {
+            (g.distance - e.distance).abs() / pair_scale(a, b).max(f64::MIN_POSITIVE)
+        })
+        .collect()
+}
+
+/// Median over `repeat` runs (after one warm-up run) of the time per pair, in ns.
+fn median_ns(repeat: usize, pairs: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    let mut t: Vec<f64> = (0..repeat.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            f();
+            start.elapsed().as_secs_f64() * 1e9 / pairs.max(1) as f64
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn pool(threads: Option<usize>) -> CliResult<rayon::ThreadPool> {
+    pool_of(threads.unwrap_or(0))
+}
+
+fn pool_of(threads: usize) -> CliResult<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CliError::runtime(format!("thread pool: {e}")))
+}
+
+fn schedule_name(s: Schedule) -> &'static str {
+    match s {
+        Schedule::Static => "static",
+        Schedule::Dynamic => "dynamic",
+    }
+}
+
+fn placeholder() -> Closest {
+    Closest {
+        distance: 0.0,
+        p: Default::default(),
+        q: Default::default(),
+        solver: dem::distance::Solver::Brute,
+    }
+}

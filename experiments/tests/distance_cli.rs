@@ -1,0 +1,169 @@
+//! `tridem distance` and `tridem kernels` as users call them.
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn tridem(args: &[&str], stdin: &str) -> (i32, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(stdin.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn cases_file() -> String {
+    concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/cases/triangle-pairs.csv"
+    )
+    .to_string()
+}
+
+/// The shared cases carry a 19th column (the reference): it is ignored as input
+/// and used here to check every output line.
+#[test]
+fn distance_of_the_shared_cases_matches_their_references() {
+    let text = std::fs::read_to_string(cases_file()).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.starts_with('#'))
+        .map(|l| l.split(',').map(|f| f.trim().parse().unwrap()).collect())
+        .collect();
+    for method in ["brute", "hybrid"] {
+        let (code, out, err) = tridem(&["distance", "--method", method, &cases_file()], "");
+        assert_eq!(code, 0, "{err}");
+        let lines: Vec<&str> = out.lines().collect();
+        assert_eq!(lines.len(), rows.len());
+        for (row, line) in rows.iter().zip(&lines) {
+            let f: Vec<&str> = line.split(',').collect();
+            assert_eq!(f.len(), 8, "{line}");
+            assert!(f[7] == "penalty" || f[7] == "brute", "{line}");
+            if method == "brute" {
+                assert_eq!(f[7], "brute");
+            }
+            let d: f64 = f[0].parse().unwrap();
+            let (lo, hi) =
+                row[..18]
+                    .chunks(3)
+                    .fold(([f64::MAX; 3], [f64::MIN; 3]), |(mut lo, mut hi), v| {
+                        for k in 0..3 {
+                            lo[k] = lo[k].min(v[k]);
+                            hi[k] = hi[k].max(v[k]);
+                        }
+                        (lo, hi)
+                    });
+            let l = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2))
+                .sqrt();
+            assert!(
+                (d - row[18]).abs() <= 1e-12 * l,
+                "{method}: {line} vs {}",
+                row[18]
+            );
+        }
+    }
+}
+
+#[test]
+fn distance_reads_stdin_and_reports_bad_rows_by_line_and_field() {
+    let good = "0,0,0,1,0,0,0,1,0,0,0,2,1,0,2,0,1,2\n";
+    let (code, out, _) = tridem(
+        &["distance", "--method", "penalty"],
+        &format!("# c\n{good}"),
+    );
+    assert_eq!(code, 0);
+    let f: Vec<&str> = out.trim().split(',').collect();
+    assert_eq!(f[0].parse::<f64>().unwrap(), 2.0);
+
+    let bad = format!("{good}{}", good.replace("1,2\n", "1,oops\n"));
+    let (code, out, err) = tridem(&["distance"], &bad);
+    assert_eq!(code, 2);
+    assert!(out.is_empty(), "no partial output: {out}");
+    assert!(
+        err.contains("stdin:2: field 18 is not a number: `oops`"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+
+    let (code, _, err) = tridem(&["distance", "/nonexistent/pairs.csv"], "");
+    assert_eq!(code, 2);
+    assert!(err.contains("/nonexistent/pairs.csv"), "{err}");
+}
+
+#[test]
+fn kernels_json_has_the_documented_fields() {
+    let (code, out, err) = tridem(
+        &[
+            "kernels",
+            "--pairs",
+            "4000",
+            "--repeat",
+            "1",
+            "--threads",
+            "2",
+            "--json",
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let rows = v.as_array().unwrap();
+    for m in ["brute", "penalty", "hybrid"] {
+        assert!(rows.iter().any(|r| r["method"] == m), "{m} missing");
+    }
+    for r in rows {
+        for k in ["method", "threads", "schedule", "batch", "ns_per_pair"] {
+            assert!(!r[k].is_null(), "{k} missing in {r}");
+        }
+        assert!(r["ns_per_pair"].as_f64().unwrap() > 0.0);
+    }
+    let hybrid = rows.iter().find(|r| r["method"] == "hybrid").unwrap();
+    let rate = hybrid["fallback_rate"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&rate));
+}
+
+#[test]
+fn kernels_accuracy_writes_csv_and_plot() {
+    let dir = std::env::temp_dir().join(format!("tridem-acc-{}", std::process::id()));
+    let (code, _, err) = tridem(
+        &[
+            "kernels",
+            "--accuracy",
+            "--pairs",
+            "2000",
+            "--repeat",
+            "1",
+            "--output",
+            dir.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let csv = std::fs::read_to_string(dir.join("kernels-accuracy.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(lines[0].starts_with("sweep,iterations"));
+    assert!(lines.len() > 30);
+    // The hybrid keeps the certificate's promise in every setting: its error is
+    // within the setting's tolerance (times L) or at rounding.
+    for l in &lines[1..] {
+        let f: Vec<&str> = l.split(',').collect();
+        let tol: f64 = f[3].parse().unwrap();
+        let hyb: f64 = f.last().unwrap().parse().unwrap();
+        assert!(hyb <= tol + 1e-13, "{l}");
+    }
+    let svg = std::fs::read_to_string(dir.join("kernels-accuracy.svg")).unwrap();
+    assert!(svg.contains("<svg"));
+    let _ = std::fs::remove_dir_all(dir);
+}
