@@ -58,6 +58,27 @@ fn penalty_is_finite_and_never_wrong_when_it_claims_convergence() {
         ..Options::default()
     };
     let (out, stats, _) = distances(&pairs, &opts).unwrap();
+    // Without the finish and with many iterations the regularisation gets
+    // small: the answers must stay finite all the same.
+    for iterations in [1, 4, 8, 16] {
+        let raw = Options {
+            method: Method::Penalty,
+            penalty: dem::distance::PenaltyParams {
+                max_iterations: iterations,
+                exact_finish: false,
+                ..Default::default()
+            },
+            ..Options::default()
+        };
+        let (raw_out, _, _) = distances(&pairs, &raw).unwrap();
+        for (c, r) in cases.iter().zip(&raw_out) {
+            assert!(
+                r.distance.is_finite(),
+                "line {}, {iterations} iterations: {r:?}",
+                c.line
+            );
+        }
+    }
     let mut per_category: BTreeMap<&str, (usize, usize, f64)> = BTreeMap::new();
     for ((c, r), s) in cases.iter().zip(&out).zip(&stats) {
         let l = pair_scale(&c.a, &c.b);

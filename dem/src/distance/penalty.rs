@@ -193,7 +193,10 @@ fn newton_batch<const N: usize>(batch: &Batch<N>, prm: &PenaltyParams) -> ([[f64
             s[2][l] = c + x2;
             s[3][l] = d + x3;
             step_max[l] = x0.abs().max(x1.abs()).max(x2.abs()).max(x3.abs());
-            delta[l] = dl * prm.regularisation_decay;
+            // Keep the system numerically positive definite: in the parallel case G
+            // is singular and a vanishing delta would let rounding make it indefinite.
+            delta[l] =
+                (dl * prm.regularisation_decay).max(MIN_REGULARISATION * rho[l] / prm.penalty);
         }
         // Bookkeeping outside the vectorised loop: when did each lane settle?
         let mut all_done = true;
@@ -209,6 +212,9 @@ fn newton_batch<const N: usize>(batch: &Batch<N>, prm: &PenaltyParams) -> ([[f64
     }
     (s, iters)
 }
+
+/// Floor of the regularisation, relative to trace(G) / 4.
+const MIN_REGULARISATION: f64 = 1e-12;
 
 /// Newton steps below this (in barycentric units) count as settled.
 const STEP_TOL: f64 = 1e-12;
@@ -315,6 +321,13 @@ fn answer_from_params(
     let o = a[0];
     let ta = [DVec3::ZERO, a[1] - o, a[2] - o];
     let tb = [b[0] - o, b[1] - o, b[2] - o];
+    // Newton cannot produce NaN from finite input with delta > 0, but a
+    // degenerate pair (all vertices equal) must not turn into NaN points.
+    let s = if s.iter().all(|x| x.is_finite()) {
+        s
+    } else {
+        [1.0 / 3.0; 4]
+    };
     let (p, q) = if prm.exact_finish {
         finish_on_features(&ta, &tb, s)
     } else {
