@@ -19,47 +19,63 @@ pub fn closest_points_segment_segment(
     p2: DVec3,
     q2: DVec3,
 ) -> (f64, f64, DVec3, DVec3) {
-    let d1 = q1 - p1;
-    let d2 = q2 - p2;
-    let r = p1 - p2;
-    let a = d1.dot(d1);
-    let e = d2.dot(d2);
-    let f = d2.dot(r);
-    let (s, t);
-    if a == 0.0 && e == 0.0 {
-        return (0.0, 0.0, p1, p2);
-    }
-    if a == 0.0 {
-        s = 0.0;
-        t = (f / e).clamp(0.0, 1.0);
-    } else {
-        let c = d1.dot(r);
-        if e == 0.0 {
-            t = 0.0;
-            s = (-c / a).clamp(0.0, 1.0);
-        } else {
-            let b = d1.dot(d2);
-            // |d1 x d2|^2 rather than a e - b^2: no cancellation for near-parallel pairs.
-            let denom = d1.cross(d2).length_squared();
-            let s0 = if denom > 0.0 {
-                ((b * f - c * e) / denom).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let t0 = (b * s0 + f) / e;
-            if t0 < 0.0 {
-                t = 0.0;
-                s = (-c / a).clamp(0.0, 1.0);
-            } else if t0 > 1.0 {
-                t = 1.0;
-                s = ((b - c) / a).clamp(0.0, 1.0);
-            } else {
-                t = t0;
-                s = s0;
-            }
-        }
-    }
+    let (d1, d2) = (q1 - p1, q2 - p2);
+    let (s, t) = segment_segment_params(
+        p1,
+        d1,
+        inverse_or_zero(d1.dot(d1)),
+        p2,
+        d2,
+        inverse_or_zero(d2.dot(d2)),
+    );
     (s, t, p1 + d1 * s, p2 + d2 * t)
+}
+
+/// 1/x, or 0 for a zero-length segment (whose parameter then stays 0).
+#[inline]
+pub(crate) fn inverse_or_zero(x: f64) -> f64 {
+    if x > 0.0 {
+        1.0 / x
+    } else {
+        0.0
+    }
+}
+
+/// The parameters (s, t) of the closest points of segments p1 + s d1 and
+/// p2 + t d2, given `inv_a = 1/|d1|^2` and `inv_e = 1/|d2|^2` (0 for a
+/// zero-length segment); callers testing many pairs of the same edges compute
+/// them once.
+///
+/// Branch-free form of Ericson's clamping: s from the lines' closest points
+/// (0 if parallel), t as the closest to that s, then s again as the closest to
+/// that t. Each step can only bring the points closer, and the last two are
+/// exactly Ericson's clamped branches, so the result is his, without the
+/// mispredicted branches random pairs cause. A zero-length segment has
+/// inv = 0 and b = c = 0 (or f = 0), which pins its parameter at 0.
+#[inline]
+pub(crate) fn segment_segment_params(
+    p1: DVec3,
+    d1: DVec3,
+    inv_a: f64,
+    p2: DVec3,
+    d2: DVec3,
+    inv_e: f64,
+) -> (f64, f64) {
+    let r = p1 - p2;
+    let f = d2.dot(r);
+    let c = d1.dot(r);
+    let b = d1.dot(d2);
+    // |d1 x d2|^2 rather than a e - b^2: no cancellation for near-parallel pairs.
+    let denom = d1.cross(d2).length_squared();
+    let e = d2.dot(d2);
+    let s0 = if denom > 0.0 {
+        ((b * f - c * e) / denom).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let t = ((b * s0 + f) * inv_e).clamp(0.0, 1.0);
+    let s = ((b * t - c) * inv_a).clamp(0.0, 1.0);
+    (s, t)
 }
 
 #[cfg(test)]

@@ -1,5 +1,6 @@
 //! Closest point of a triangle to a point.
 
+use super::closest_point_segment_segment::inverse_or_zero;
 use super::closest_points_segment_segment;
 use glam::DVec3;
 
@@ -49,6 +50,48 @@ pub fn closest_on_boundary(p: DVec3, t: &[DVec3; 3]) -> DVec3 {
         }
     }
     best
+}
+
+/// A triangle with what every query against it needs, computed once: edges,
+/// their squared lengths, and, unless it is flat, the normal and the inward
+/// edge normals n x e_i that make the inside test three dot products.
+pub(crate) struct PreparedTriangle {
+    pub v: [DVec3; 3],
+    /// e_i = v_{i+1} - v_i.
+    pub e: [DVec3; 3],
+    /// 1/|e_i|^2, or 0 for a zero-length edge.
+    pub inv_ee: [f64; 3],
+    /// (n, n.n, inward edge normals), `None` when flat to rounding.
+    pub plane: Option<(DVec3, f64, [DVec3; 3])>,
+}
+
+impl PreparedTriangle {
+    #[inline]
+    pub fn new(t: &[DVec3; 3]) -> Self {
+        let e = [t[1] - t[0], t[2] - t[1], t[0] - t[2]];
+        let inv_ee = [0, 1, 2].map(|i| inverse_or_zero(e[i].length_squared()));
+        let plane = usable_normal(t).map(|n| {
+            (
+                n,
+                n.length_squared(),
+                [n.cross(e[0]), n.cross(e[1]), n.cross(e[2])],
+            )
+        });
+        PreparedTriangle {
+            v: *t,
+            e,
+            inv_ee,
+            plane,
+        }
+    }
+
+    /// The projection of `p` onto the plane if it falls inside the triangle.
+    #[inline]
+    pub fn project_inside(&self, p: DVec3) -> Option<DVec3> {
+        let (n, nn, m) = self.plane?;
+        let inside = (0..3).all(|i| m[i].dot(p - self.v[i]) >= 0.0);
+        inside.then(|| p - n * (n.dot(p - self.v[0]) / nn))
+    }
 }
 
 /// Normal of the triangle from the two edges at its largest angle: the

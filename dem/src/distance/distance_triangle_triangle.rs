@@ -11,8 +11,9 @@
 //! from the origin become small differences, which are exact for nearby floats,
 //! so accuracy depends on the pair's own size, not on where it sits.
 
-use super::closest_point_triangle::{project_inside, usable_normal};
-use super::{closest_points_segment_segment, Closest, Solver, Triangle};
+use super::closest_point_segment_segment::segment_segment_params;
+use super::closest_point_triangle::PreparedTriangle;
+use super::{Closest, Solver, Triangle};
 use glam::DVec3;
 
 /// Minimum distance between triangles `a` and `b`, with closest points `p` on
@@ -33,6 +34,7 @@ pub fn distance_triangle_triangle(a: &Triangle, b: &Triangle) -> Closest {
 
 /// Closest points of two triangles given in a common local frame.
 fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
+    let (pa, pb) = (PreparedTriangle::new(ta), PreparedTriangle::new(tb));
     let mut best = f64::INFINITY;
     let mut pq = (ta[0], tb[0]);
     let mut consider = |p: DVec3, q: DVec3| {
@@ -42,29 +44,34 @@ fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
             pq = (p, q);
         }
     };
+    for i in 0..3 {
+        for j in 0..3 {
+            let (s, t) = segment_segment_params(
+                pa.v[i],
+                pa.e[i],
+                pa.inv_ee[i],
+                pb.v[j],
+                pb.e[j],
+                pb.inv_ee[j],
+            );
+            consider(pa.v[i] + pa.e[i] * s, pb.v[j] + pb.e[j] * t);
+        }
+    }
     // A vertex against the other triangle's boundary is already covered by the
     // edge-edge pairs (the vertex ends two edges), so only interior projections
     // are new candidates.
-    let (na, nb) = (usable_normal(ta), usable_normal(tb));
     for &v in ta {
-        if let Some(q) = project_inside(v, tb, nb) {
+        if let Some(q) = pb.project_inside(v) {
             consider(v, q);
         }
     }
     for &v in tb {
-        if let Some(p) = project_inside(v, ta, na) {
+        if let Some(p) = pa.project_inside(v) {
             consider(p, v);
         }
     }
-    for i in 0..3 {
-        for j in 0..3 {
-            let (_, _, p, q) =
-                closest_points_segment_segment(ta[i], ta[(i + 1) % 3], tb[j], tb[(j + 1) % 3]);
-            consider(p, q);
-        }
-    }
     if best > 0.0 {
-        if let Some(x) = edge_piercing(ta, tb, nb).or_else(|| edge_piercing(tb, ta, na)) {
+        if let Some(x) = edge_piercing(&pa, &pb).or_else(|| edge_piercing(&pb, &pa)) {
             return (x, x);
         }
     }
@@ -77,19 +84,19 @@ fn closest_local(ta: &Triangle, tb: &Triangle) -> (DVec3, DVec3) {
 /// vertex-triangle pair, already measured. Near the boundary of `t` the sign
 /// tests may go either way, but there an edge-edge pair is at distance zero to
 /// rounding, so the answer is the same.
-fn edge_piercing(s: &Triangle, t: &Triangle, n: Option<DVec3>) -> Option<DVec3> {
-    let n = n?;
-    let side = [n.dot(s[0] - t[0]), n.dot(s[1] - t[0]), n.dot(s[2] - t[0])];
+fn edge_piercing(s: &PreparedTriangle, t: &PreparedTriangle) -> Option<DVec3> {
+    let (n, _, m) = t.plane?;
+    let side = [
+        n.dot(s.v[0] - t.v[0]),
+        n.dot(s.v[1] - t.v[0]),
+        n.dot(s.v[2] - t.v[0]),
+    ];
     for i in 0..3 {
         let j = (i + 1) % 3;
         let (h0, h1) = (side[i], side[j]);
         if (h0 > 0.0 && h1 < 0.0) || (h0 < 0.0 && h1 > 0.0) {
-            let x = s[i] + (s[j] - s[i]) * (h0 / (h0 - h1));
-            let inside = (0..3).all(|k| {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                n.dot((b - a).cross(x - a)) >= 0.0
-            });
-            if inside {
+            let x = s.v[i] + s.e[i] * (h0 / (h0 - h1));
+            if (0..3).all(|k| m[k].dot(x - t.v[k]) >= 0.0) {
                 return Some(x);
             }
         }
