@@ -233,7 +233,7 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
             let name = if finish {
                 "iterations"
             } else {
-                "iterations, no finish"
+                "iterations (no finish)"
             };
             settings.push((
                 name,

@@ -1,7 +1,118 @@
 //! Domain decomposition for tridem.
 //!
-//! One interface over three backends: Trilinos Zoltan (through the safe layer
-//! in [`zoltan`] over `zoltan-sys`), METIS, and a native recursive coordinate
-//! bisection.
+//! One interface ([`Partitioner`]) over three backends: Trilinos Zoltan
+//! (RCB, RIB, HSFC through the safe layer in [`zoltan`] over `zoltan-sys`),
+//! METIS on the items' proximity graph ([`metis_graph`]), and a native
+//! recursive coordinate bisection ([`rcb`]). Around them: migration of items
+//! to their new owners ([`migrate`]), ghost exchange ([`ghosts`]) and the
+//! metrics the experiments report ([`metrics`]).
 
+mod aabb;
+pub mod comm;
+pub mod cut_tree;
+pub mod ghosts;
+mod item;
+pub mod metis_graph;
+pub mod metrics;
+pub mod migrate;
+pub mod rcb;
+pub mod workload;
 pub mod zoltan;
+
+pub use aabb::Aabb;
+pub use item::{Item, LocalItems};
+use mpi::topology::SimpleCommunicator;
+
+/// Why partitioning failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PartitionError {
+    #[error("Zoltan: {0}")]
+    Zoltan(#[from] zoltan::ZoltanError),
+    #[error("METIS: {0}")]
+    Metis(String),
+    #[error("bad item: {0}")]
+    BadItem(String),
+}
+
+/// A way to split items among the ranks of a communicator.
+pub trait Partitioner {
+    fn name(&self) -> &'static str;
+
+    /// Collective: the new owner rank of each local item.
+    fn partition(
+        &mut self,
+        comm: &SimpleCommunicator,
+        items: &[Item],
+    ) -> Result<Vec<i32>, PartitionError>;
+
+    /// The rank that owns the region containing `p` (after a partitioning;
+    /// before the first, every point belongs to rank 0).
+    fn owner(&self, p: [f64; 3]) -> Result<i32, PartitionError>;
+
+    /// Appends the ranks whose regions overlap box `b` (after a partitioning).
+    fn ranks_overlapping(&self, b: &Aabb, out: &mut Vec<i32>) -> Result<(), PartitionError>;
+}
+
+/// The backends, by the names the command line uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    ZoltanRcb,
+    ZoltanRib,
+    ZoltanHsfc,
+    Metis,
+    Rcb,
+}
+
+impl Backend {
+    pub const ALL: [Backend; 5] = [
+        Backend::ZoltanRcb,
+        Backend::ZoltanRib,
+        Backend::ZoltanHsfc,
+        Backend::Metis,
+        Backend::Rcb,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::ZoltanRcb => "zoltan-rcb",
+            Backend::ZoltanRib => "zoltan-rib",
+            Backend::ZoltanHsfc => "zoltan-hsfc",
+            Backend::Metis => "metis",
+            Backend::Rcb => "rcb",
+        }
+    }
+
+    /// Creates the partitioner on `comm` (Zoltan needs its communicator).
+    pub fn create<'c>(
+        self,
+        comm: &'c SimpleCommunicator,
+    ) -> Result<Box<dyn Partitioner + 'c>, PartitionError> {
+        Ok(match self {
+            Backend::ZoltanRcb => {
+                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Rcb)?)
+            }
+            Backend::ZoltanRib => {
+                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Rib)?)
+            }
+            Backend::ZoltanHsfc => {
+                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Hsfc)?)
+            }
+            Backend::Metis => Box::new(metis_graph::MetisPartitioner::default()),
+            Backend::Rcb => Box::new(rcb::Rcb::new()),
+        })
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Backend::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown partitioner `{s}` (zoltan-rcb, zoltan-rib, zoltan-hsfc, metis, rcb)"
+                )
+            })
+    }
+}

@@ -12,6 +12,12 @@ pub enum ZoltanError {
          {bindings} bytes; rebuild zoltan-sys against the same zoltan.h as the library"
     )]
     IdTypeMismatch { library: usize, bindings: usize },
+    #[error("Zoltan_Create returned null")]
+    Create,
+    #[error("{what} failed with Zoltan code {code}")]
+    Call { what: String, code: i32 },
+    #[error("item ids must fit Zoltan's 4-byte global ids")]
+    IdTooLarge,
 }
 
 /// The version Zoltan_Initialize reported, e.g. 3.9.

@@ -1,0 +1,118 @@
+//! Run under mpirun by partition's tests: partitions a workload with one
+//! backend, migrates, exchanges ghosts, and reports what the tests check.
+//!
+//! Usage: partition_check BACKEND WORKLOAD ITEMS HALO [MOVE]
+//! MOVE > 0 repartitions once more after moving the items by that time fraction.
+use mpi::traits::*;
+use mpi_harness::Reporter;
+use partition::comm::all_gather_v;
+use partition::ghosts::exchange_ghosts;
+use partition::migrate::migrate;
+use partition::workload::{Spec, Workload};
+use partition::{metrics, Aabb, Backend};
+use std::time::Instant;
+
+fn main() {
+    let universe = mpi::initialize().expect("MPI init");
+    let world = universe.world();
+    let (me, size) = (world.rank(), world.size());
+    let mut out = Reporter::new(me as usize);
+    let args: Vec<String> = std::env::args().collect();
+    let backend: Backend = args[1].parse().unwrap();
+    let workload: Workload = args[2].parse().unwrap();
+    let n: u64 = args[3].parse().unwrap();
+    let halo: f64 = args[4].parse().unwrap();
+    let shift: f64 = args.get(5).map_or(0.0, |s| s.parse().unwrap());
+
+    let spec = Spec::new(workload, n);
+    let mut local = spec.initial(me, size);
+    // Weighted items: ids divisible by 3 cost three times as much.
+    for it in &mut local.items {
+        it.weight = if it.id % 3 == 0 { 3.0 } else { 1.0 };
+    }
+    let mut part = match backend {
+        Backend::Metis => Box::new(partition::metis_graph::MetisPartitioner::with_halo(halo)),
+        b => b.create(&world).unwrap(),
+    };
+    let t = Instant::now();
+    let owners = part.partition(&world, &local.items).unwrap();
+    let dt = t.elapsed().as_secs_f64();
+    let (moved, mstats) = migrate(&world, local, &owners);
+    local = moved;
+    let ghosts = exchange_ghosts(&world, part.as_ref(), &local, halo).unwrap();
+    let m = metrics::collect(&world, 0, part.name(), &local, dt, 0.0, &mstats, &ghosts);
+
+    out.kv("local_items", local.len());
+    out.kv("id_sum", local.items.iter().map(|i| i.id).sum::<u64>());
+    out.kv(
+        "id_sq_sum",
+        local
+            .items
+            .iter()
+            .map(|i| (i.id as u128 * i.id as u128) as f64)
+            .sum::<f64>(),
+    );
+    out.kv("payload_ok", local.payloads_match_ids());
+    out.kv("weight", local.items.iter().map(|i| i.weight).sum::<f64>());
+    out.kv("imbalance", m.imbalance);
+    out.kv("ghost_items", m.ghost_items);
+    out.kv("migrated_items", m.migrated_items);
+
+    // Point and box queries agree with the partition.
+    let mut owner_mismatch = 0;
+    let mut box_mismatch = 0;
+    let mut buf = Vec::new();
+    for it in &local.items {
+        if part.owner(it.point).unwrap() != me {
+            owner_mismatch += 1;
+        }
+        for scale in [0.0, 1e-3, 0.05, 0.3] {
+            let b = Aabb::new(it.point, it.point).inflated(scale);
+            buf.clear();
+            part.ranks_overlapping(&b, &mut buf).unwrap();
+            if !buf.contains(&me) {
+                box_mismatch += 1;
+            }
+        }
+    }
+    out.kv("owner_mismatch", owner_mismatch);
+    out.kv("box_mismatch", box_mismatch);
+
+    // Ghost completeness against brute force over all items of all ranks.
+    let everything = all_gather_v(&world, &local.items);
+    let counts: Vec<i32> = {
+        let mut v = vec![0i32; size as usize];
+        world.all_gather_into(&(local.len() as i32), &mut v[..]);
+        v
+    };
+    let mut rank_of_item = Vec::with_capacity(everything.len());
+    for (r, &c) in counts.iter().enumerate() {
+        rank_of_item.extend(std::iter::repeat_n(r as i32, c as usize));
+    }
+    let got: std::collections::HashSet<u64> = ghosts.received.iter().map(|g| g.id).collect();
+    let mut missing = 0;
+    for it in &local.items {
+        let b = it.bbox.inflated(halo);
+        for (o, &r) in everything.iter().zip(&rank_of_item) {
+            if r != me && b.overlaps(&o.bbox.inflated(halo)) && !got.contains(&o.id) {
+                missing += 1;
+            }
+        }
+    }
+    out.kv("ghosts_missing", missing);
+    out.kv("ghosts_received", ghosts.received.len());
+
+    if shift > 0.0 {
+        spec.advance(&mut local, shift);
+        let owners = part.partition(&world, &local.items).unwrap();
+        let (moved, ms) = migrate(&world, local, &owners);
+        let mut total = 0u64;
+        world.all_reduce_into(
+            &ms.items_sent,
+            &mut total,
+            mpi::collective::SystemOperation::sum(),
+        );
+        out.kv("remigrated_items", total);
+        out.kv("local_items_after", moved.len());
+    }
+}

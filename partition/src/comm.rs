@@ -1,0 +1,68 @@
+//! Collective helpers over rsmpi used by migration, ghosts and METIS.
+
+use mpi::datatype::{Partition, PartitionMut};
+use mpi::traits::*;
+use mpi::Count;
+
+/// Exclusive prefix sums of counts: the displacements of a varcount exchange.
+pub fn displacements(counts: &[Count]) -> Vec<Count> {
+    counts
+        .iter()
+        .scan(0, |acc, &c| {
+            let d = *acc;
+            *acc += c;
+            Some(d)
+        })
+        .collect()
+}
+
+/// All-to-all of variable-sized blocks: `send` holds the blocks for ranks
+/// 0..P in order, `send_counts[r]` elements for rank r. Returns what every rank
+/// sent here, in rank order, and the counts received from each rank.
+pub fn all_to_all_v<C, T>(comm: &C, send: &[T], send_counts: &[Count]) -> (Vec<T>, Vec<Count>)
+where
+    C: Communicator,
+    T: Equivalence + Clone + Default,
+{
+    let size = comm.size() as usize;
+    assert_eq!(send_counts.len(), size);
+    let mut recv_counts = vec![0 as Count; size];
+    comm.all_to_all_into(send_counts, &mut recv_counts[..]);
+    let total: Count = recv_counts.iter().sum();
+    let mut recv = vec![T::default(); total as usize];
+    let sdispl = displacements(send_counts);
+    let rdispl = displacements(&recv_counts);
+    {
+        let s = Partition::new(send, send_counts, &sdispl[..]);
+        let mut r = PartitionMut::new(&mut recv[..], &recv_counts[..], &rdispl[..]);
+        comm.all_to_all_varcount_into(&s, &mut r);
+    }
+    (recv, recv_counts)
+}
+
+/// Gathers variable-sized blocks from every rank to every rank, in rank order.
+pub fn all_gather_v<C, T>(comm: &C, send: &[T]) -> Vec<T>
+where
+    C: Communicator,
+    T: Equivalence + Clone + Default,
+{
+    let size = comm.size() as usize;
+    let mut counts = vec![0 as Count; size];
+    comm.all_gather_into(&(send.len() as Count), &mut counts[..]);
+    let total: Count = counts.iter().sum();
+    let mut recv = vec![T::default(); total as usize];
+    let displs = displacements(&counts);
+    {
+        let mut r = PartitionMut::new(&mut recv[..], &counts[..], &displs[..]);
+        comm.all_gather_varcount_into(send, &mut r);
+    }
+    recv
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn displacements_are_exclusive_prefix_sums() {
+        assert_eq!(super::displacements(&[2, 0, 3, 1]), vec![0, 2, 2, 5]);
+    }
+}

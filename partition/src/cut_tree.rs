@@ -1,0 +1,88 @@
+//! A tree of axis-aligned cuts: the geometric answer of RCB, queried for the
+//! owner of a point and the ranks a box overlaps.
+
+use crate::Aabb;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Node {
+    Leaf(i32),
+    /// Points with x[dim] <= value go left.
+    Cut {
+        dim: usize,
+        value: f64,
+        left: usize,
+        right: usize,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutTree {
+    pub nodes: Vec<Node>,
+}
+
+impl CutTree {
+    /// Owner rank of a point.
+    #[inline]
+    pub fn owner(&self, p: [f64; 3]) -> i32 {
+        let mut n = 0;
+        loop {
+            match self.nodes[n] {
+                Node::Leaf(r) => return r,
+                Node::Cut {
+                    dim,
+                    value,
+                    left,
+                    right,
+                } => n = if p[dim] <= value { left } else { right },
+            }
+        }
+    }
+
+    /// Appends the ranks whose region overlaps the closed box `b`.
+    pub fn ranks_overlapping(&self, b: &Aabb, out: &mut Vec<i32>) {
+        let mut stack = [0usize; 64];
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            match self.nodes[stack[top]] {
+                Node::Leaf(r) => out.push(r),
+                Node::Cut {
+                    dim,
+                    value,
+                    left,
+                    right,
+                } => {
+                    if b.lo[dim] <= value {
+                        stack[top] = left;
+                        top += 1;
+                    }
+                    if b.hi[dim] > value {
+                        stack[top] = right;
+                        top += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The region of `rank` within `domain`.
+    pub fn region(&self, rank: i32, domain: &Aabb) -> Option<Aabb> {
+        fn walk(t: &CutTree, n: usize, b: Aabb, rank: i32) -> Option<Aabb> {
+            match t.nodes[n] {
+                Node::Leaf(r) => (r == rank).then_some(b),
+                Node::Cut {
+                    dim,
+                    value,
+                    left,
+                    right,
+                } => {
+                    let (mut l, mut r) = (b, b);
+                    l.hi[dim] = l.hi[dim].min(value);
+                    r.lo[dim] = r.lo[dim].max(value);
+                    walk(t, left, l, rank).or_else(|| walk(t, right, r, rank))
+                }
+            }
+        }
+        walk(self, 0, *domain, rank)
+    }
+}

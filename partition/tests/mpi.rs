@@ -1,0 +1,144 @@
+//! Multi-rank tests of every backend through the mpirun harness.
+use mpi_harness::{example_binary, MpiRun, RunOutput};
+
+const BACKENDS: [&str; 5] = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+
+fn run(
+    backend: &str,
+    workload: &str,
+    items: u64,
+    halo: f64,
+    ranks: usize,
+    shift: f64,
+) -> RunOutput {
+    MpiRun::new(example_binary("partition_check"))
+        .ranks(ranks)
+        .args([
+            backend.to_string(),
+            workload.into(),
+            items.to_string(),
+            halo.to_string(),
+            shift.to_string(),
+        ])
+        .run()
+        .unwrap_or_else(|e| panic!("{backend} on {ranks} ranks: {e}"))
+}
+
+fn sum<T: std::str::FromStr + std::iter::Sum>(run: &RunOutput, key: &str) -> T {
+    run.reports.iter().map(|r| r.parse::<T>(key)).sum()
+}
+
+/// Every item on exactly one rank (count and checksums of ids), payloads
+/// intact, queries consistent with the partition, ghosts complete; imbalance
+/// within 1.05 on the uniform workload.
+#[test]
+fn every_backend_on_1_to_4_ranks() {
+    let n = 6000u64;
+    let halo = 0.01;
+    let id_sum: u64 = (0..n).sum();
+    let id_sq: f64 = (0..n).map(|i| (i * i) as f64).sum();
+    let weight: f64 = (0..n).map(|i| if i % 3 == 0 { 3.0 } else { 1.0 }).sum();
+    for backend in BACKENDS {
+        for ranks in [1, 2, 3, 4] {
+            let r = run(backend, "uniform", n, halo, ranks, 0.0);
+            let ctx = format!("{backend} on {ranks} ranks");
+            assert_eq!(
+                sum::<usize>(&r, "local_items"),
+                n as usize,
+                "{ctx}: item count"
+            );
+            assert_eq!(sum::<u64>(&r, "id_sum"), id_sum, "{ctx}: id checksum");
+            assert_eq!(
+                sum::<f64>(&r, "id_sq_sum"),
+                id_sq,
+                "{ctx}: id square checksum"
+            );
+            assert!(
+                (sum::<f64>(&r, "weight") - weight).abs() < 1e-9,
+                "{ctx}: weights"
+            );
+            for rep in &r.reports {
+                assert_eq!(rep.value("payload_ok"), Some("true"), "{ctx}: payload");
+                assert_eq!(rep.parse::<u64>("owner_mismatch"), 0, "{ctx}: owner(point)");
+                assert_eq!(
+                    rep.parse::<u64>("box_mismatch"),
+                    0,
+                    "{ctx}: ranks_overlapping"
+                );
+                assert_eq!(
+                    rep.parse::<u64>("ghosts_missing"),
+                    0,
+                    "{ctx}: ghost completeness"
+                );
+            }
+            let imb: f64 = r.reports[0].parse("imbalance");
+            assert!(imb <= 1.05, "{ctx}: imbalance {imb}");
+            if ranks == 1 {
+                assert_eq!(r.reports[0].parse::<u64>("ghost_items"), 0);
+            } else {
+                assert!(
+                    r.reports[0].parse::<u64>("ghost_items") > 0,
+                    "{ctx}: no ghosts at all?"
+                );
+            }
+        }
+    }
+}
+
+/// Clustered items: every item still placed once and ghosts complete.
+#[test]
+fn blobs_keep_items_and_ghosts() {
+    for backend in BACKENDS {
+        let r = run(backend, "blobs", 4000, 0.005, 3, 0.0);
+        assert_eq!(sum::<usize>(&r, "local_items"), 4000, "{backend}");
+        for rep in &r.reports {
+            assert_eq!(rep.parse::<u64>("ghosts_missing"), 0, "{backend}");
+            assert_eq!(rep.parse::<u64>("owner_mismatch"), 0, "{backend}");
+        }
+    }
+}
+
+/// The native RCB matches Zoltan's RCB in quality on the same input.
+#[test]
+fn native_rcb_matches_zoltan_rcb_quality() {
+    for ranks in [2, 3, 4] {
+        let ours = run("rcb", "uniform", 20000, 0.005, ranks, 0.0);
+        let zol = run("zoltan-rcb", "uniform", 20000, 0.005, ranks, 0.0);
+        let (i1, i2): (f64, f64) = (
+            ours.reports[0].parse("imbalance"),
+            zol.reports[0].parse("imbalance"),
+        );
+        assert!(
+            i1 <= 1.05 && (i1 - i2).abs() <= 0.1 * i2,
+            "{ranks} ranks: imbalance {i1} vs {i2}"
+        );
+        let (g1, g2): (f64, f64) = (
+            ours.reports[0].parse("ghost_items"),
+            zol.reports[0].parse("ghost_items"),
+        );
+        assert!(
+            (g1 - g2).abs() <= 0.1 * g2,
+            "{ranks} ranks: ghosts {g1} vs {g2}"
+        );
+    }
+}
+
+/// Repartitioning after a small move (hopper drift, reused cuts) migrates few items.
+#[test]
+fn repartition_after_small_move_migrates_few() {
+    let n = 8000u64;
+    for backend in ["rcb", "zoltan-rcb"] {
+        let r = run(backend, "hopper", n, 0.005, 4, 0.002);
+        let first: u64 = r.reports[0].parse("migrated_items");
+        let again: u64 = r.reports[0].parse("remigrated_items");
+        assert_eq!(sum::<usize>(&r, "local_items_after"), n as usize);
+        assert!(
+            first > n / 2,
+            "{backend}: first partition moved only {first}"
+        );
+        assert!(
+            again * 20 < n,
+            "{backend}: repartition moved {again} of {n}"
+        );
+    }
+}
