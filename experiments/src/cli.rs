@@ -23,6 +23,39 @@ pub enum Command {
     Distance(DistanceArgs),
     /// Benchmark the triangle-distance kernels, or sweep accuracy against time (--accuracy).
     Kernels(KernelsArgs),
+    /// Partition a synthetic workload with one partitioner (run under mpirun).
+    Partition(PartitionArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PartitionArgs {
+    /// zoltan-rcb, zoltan-rib, zoltan-hsfc, metis or rcb.
+    #[arg(long)]
+    pub partitioner: partition::Backend,
+    /// uniform, blobs or hopper.
+    #[arg(long, default_value = "uniform")]
+    pub workload: partition::workload::Workload,
+    /// Items (small triangles) over all ranks.
+    #[arg(long, default_value_t = 100_000)]
+    pub items: u64,
+    /// Time steps of the workload's motion.
+    #[arg(long, default_value_t = 1)]
+    pub steps: usize,
+    /// Repartition every K steps.
+    #[arg(long, default_value_t = 1)]
+    pub every: usize,
+    /// Contact halo for ghosts and the METIS graph (default: a quarter of the triangle size).
+    #[arg(long)]
+    pub halo: Option<f64>,
+    /// Threads per rank (default: the cores available to the rank).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// One JSON object per partitioning step instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write a CSV of the steps to this directory.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]

@@ -6,6 +6,7 @@ mod error;
 mod info;
 mod kernels;
 mod pairs_csv;
+mod partition_cmd;
 mod plot;
 
 use clap::Parser;
@@ -17,6 +18,7 @@ fn main() -> ExitCode {
         cli::Command::Info(args) => info::run(&args),
         cli::Command::Distance(args) => distance_cmd::run(&args),
         cli::Command::Kernels(args) => kernels::run(&args),
+        cli::Command::Partition(args) => partition_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -49,3 +49,92 @@ fn help_lists_subcommands() {
     assert!(out.status.success());
     assert!(text.contains("info"), "{text}");
 }
+
+#[test]
+fn partition_json_on_two_ranks_has_the_documented_fields() {
+    for partitioner in ["rcb", "zoltan-rcb", "metis"] {
+        let run = MpiRun::new(env!("CARGO_BIN_EXE_tridem"))
+            .ranks(2)
+            .args([
+                "partition",
+                "--partitioner",
+                partitioner,
+                "--workload",
+                "hopper",
+                "--items",
+                "5000",
+                "--steps",
+                "4",
+                "--every",
+                "2",
+                "--json",
+            ])
+            .expect_reports(false)
+            .run()
+            .unwrap_or_else(|e| panic!("{e}"));
+        let rows: Vec<serde_json::Value> = run
+            .stdout
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+            .collect();
+        assert_eq!(rows.len(), 2, "steps 0 and 2 partition: {}", run.stdout);
+        for r in &rows {
+            for k in [
+                "step",
+                "partitioner",
+                "ranks",
+                "items",
+                "imbalance",
+                "partition_s",
+                "migrated_items",
+                "migrated_bytes",
+                "ghost_items",
+                "ghost_bytes",
+            ] {
+                assert!(!r[k].is_null(), "{k} missing in {r}");
+            }
+            assert_eq!(r["items"], 5000);
+            assert_eq!(r["ranks"], 2);
+            assert_eq!(r["partitioner"], partitioner);
+        }
+        // Items start dealt by id, so the first partitioning moves about half.
+        assert!(rows[0]["migrated_items"].as_u64().unwrap() > 1000);
+    }
+}
+
+#[test]
+fn partition_rejects_bad_arguments_without_a_panic() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(["partition", "--partitioner", "nonsense"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("unknown partitioner `nonsense`"), "{err}");
+}
+
+#[test]
+fn slurm_job_templates_parse() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../jobs");
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "sbatch") {
+            let out = std::process::Command::new("bash")
+                .arg("-n")
+                .arg(&path)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}: {}",
+                path.display(),
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let text = std::fs::read_to_string(&path).unwrap();
+            assert!(text.contains("#SBATCH --job-name"), "{}", path.display());
+            n += 1;
+        }
+    }
+    assert!(n >= 3);
+}

@@ -30,10 +30,7 @@ fn main() {
     for it in &mut local.items {
         it.weight = if it.id % 3 == 0 { 3.0 } else { 1.0 };
     }
-    let mut part = match backend {
-        Backend::Metis => Box::new(partition::metis_graph::MetisPartitioner::with_halo(halo)),
-        b => b.create(&world).unwrap(),
-    };
+    let mut part = backend.create(&world, halo).unwrap();
     let t = Instant::now();
     let owners = part.partition(&world, &local.items).unwrap();
     let dt = t.elapsed().as_secs_f64();

@@ -83,9 +83,11 @@ impl Backend {
     }
 
     /// Creates the partitioner on `comm` (Zoltan needs its communicator).
+    /// `halo` is the contact halo: METIS joins items whose boxes inflated by it overlap.
     pub fn create<'c>(
         self,
         comm: &'c SimpleCommunicator,
+        halo: f64,
     ) -> Result<Box<dyn Partitioner + 'c>, PartitionError> {
         Ok(match self {
             Backend::ZoltanRcb => {
@@ -97,7 +99,7 @@ impl Backend {
             Backend::ZoltanHsfc => {
                 Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Hsfc)?)
             }
-            Backend::Metis => Box::new(metis_graph::MetisPartitioner::default()),
+            Backend::Metis => Box::new(metis_graph::MetisPartitioner::with_halo(halo)),
             Backend::Rcb => Box::new(rcb::Rcb::new()),
         })
     }

@@ -10,7 +10,9 @@
 //! item points, each given wholly to the rank with most of its weight (items of
 //! a cell follow it, which keeps `owner(point)` consistent with the partition
 //! and costs little balance, cells being about one item wide). Every rank
-//! receives the cell map for point and box queries.
+//! receives the cell owners (a dense grid over the items' bounding box) for
+//! point and box queries; a point in an empty cell belongs to the owner of
+//! the nearest occupied cell.
 
 use crate::comm::displacements;
 use crate::{Aabb, Item, PartitionError, Partitioner};
@@ -18,27 +20,58 @@ use mpi::datatype::{Partition, PartitionMut};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
-use std::collections::HashMap;
 
-type Cell = [i64; 3];
+/// The graph halo is at least this fraction of the mean item spacing: about a
+/// dozen neighbours per item for items half a spacing wide, enough for a
+/// connected graph, few enough to keep the serial graph build and METIS cheap.
+const GRAPH_SPACING: f64 = 0.35;
+
+/// Cells per item at most: the grid is dense, so its size is bounded by the items.
+const MAX_CELLS_PER_ITEM: f64 = 4.0;
 
 #[derive(Debug, Clone, Default)]
 pub struct MetisPartitioner {
-    /// Items whose boxes inflated by `halo` overlap are joined in the graph.
+    /// Contact halo: items whose boxes inflated by it overlap are always joined
+    /// in the graph (whose halo is at least a fraction of the mean item spacing).
     pub halo: f64,
     grid: Option<Grid>,
 }
 
-#[derive(Debug, Clone)]
+/// A dense grid over the items' points; `owner[c]` is -1 for an empty cell.
+#[derive(Debug, Clone, Default)]
 struct Grid {
     origin: [f64; 3],
     size: f64,
-    owner: HashMap<Cell, i32>,
+    dims: [usize; 3],
+    owner: Vec<i32>,
 }
 
 impl Grid {
-    fn cell(&self, p: [f64; 3]) -> Cell {
-        [0, 1, 2].map(|k| ((p[k] - self.origin[k]) / self.size).floor() as i64)
+    fn new(domain: &Aabb, size: f64) -> Grid {
+        let dims =
+            [0, 1, 2].map(|k| (((domain.hi[k] - domain.lo[k]) / size).floor() as usize + 1).max(1));
+        Grid {
+            origin: domain.lo,
+            size,
+            dims,
+            owner: Vec::new(),
+        }
+    }
+
+    /// Integer cell coordinates, clamped to the grid.
+    fn coords(&self, p: [f64; 3]) -> [usize; 3] {
+        [0, 1, 2].map(|k| {
+            let c = ((p[k] - self.origin[k]) / self.size).floor();
+            c.clamp(0.0, (self.dims[k] - 1) as f64) as usize
+        })
+    }
+
+    fn index(&self, c: [usize; 3]) -> usize {
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+
+    fn len(&self) -> usize {
+        self.dims.iter().product()
     }
 }
 
@@ -49,12 +82,13 @@ impl MetisPartitioner {
 }
 
 /// Builds the graph, partitions it and makes the result cell-consistent.
-/// Returns (owner per item, grid with the cell map).
+/// Returns (owner per item, grid with the cell owners).
 fn partition_on_root(
     items: &[Item],
     nparts: i32,
     halo: f64,
 ) -> Result<(Vec<i32>, Grid), PartitionError> {
+    let n = items.len();
     let mut domain = Aabb::EMPTY;
     let mut reach = 0.0f64;
     for it in items {
@@ -65,44 +99,62 @@ fn partition_on_root(
                 .max((it.bbox.hi[k] - it.point[k]).abs());
         }
     }
-    // Items whose inflated boxes overlap have points within 2 (reach + halo) per axis.
-    let extent = domain.extent().into_iter().fold(0.0, f64::max);
-    let size = (2.0 * (reach + halo))
+    if n == 0 {
+        domain = Aabb::new([0.0; 3], [0.0; 3]);
+    }
+    let ext = domain.extent();
+    let extent = ext.into_iter().fold(0.0, f64::max);
+    let volume: f64 = ext.iter().map(|e| e.max(extent * 1e-3)).product();
+    let spacing = (volume / n.max(1) as f64).cbrt();
+    let graph_halo = halo.max(GRAPH_SPACING * spacing);
+    // Items whose inflated boxes overlap have points within 2 (reach + halo) per
+    // axis, so they are in the same or adjacent cells.
+    let mut size = (2.0 * (reach + graph_halo))
         .max(extent * 1e-6)
         .max(f64::MIN_POSITIVE);
-    let origin = if domain.is_empty() {
-        [0.0; 3]
-    } else {
-        domain.lo
-    };
-    let mut grid = Grid {
-        origin,
-        size,
-        owner: HashMap::new(),
-    };
-    let mut cells: HashMap<Cell, Vec<u32>> = HashMap::new();
-    for (i, it) in items.iter().enumerate() {
-        cells.entry(grid.cell(it.point)).or_default().push(i as u32);
+    let mut grid = Grid::new(&domain, size);
+    while grid.len() as f64 > MAX_CELLS_PER_ITEM * n.max(1) as f64 {
+        size *= 1.25;
+        grid = Grid::new(&domain, size);
     }
-    let n = items.len();
+    // Items sorted by cell (counting sort): cell c holds by_cell[start[c]..start[c+1]].
+    let cell_of: Vec<usize> = items
+        .iter()
+        .map(|it| grid.index(grid.coords(it.point)))
+        .collect();
+    let mut start = vec![0usize; grid.len() + 1];
+    for &c in &cell_of {
+        start[c + 1] += 1;
+    }
+    for c in 0..grid.len() {
+        start[c + 1] += start[c];
+    }
+    let mut fill = start.clone();
+    let mut by_cell = vec![0u32; n];
+    for (i, &c) in cell_of.iter().enumerate() {
+        by_cell[fill[c]] = i as u32;
+        fill[c] += 1;
+    }
     let mut owners = vec![0i32; n];
     if nparts > 1 && n > 0 {
         let mut xadj: Vec<metis::Idx> = Vec::with_capacity(n + 1);
         let mut adjncy: Vec<metis::Idx> = Vec::new();
         xadj.push(0);
-        for it in items {
-            let c = grid.cell(it.point);
-            let b = it.bbox.inflated(halo);
-            let me = it as *const Item;
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        if let Some(v) = cells.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
-                            for &j in v {
-                                let o = &items[j as usize];
-                                if !std::ptr::eq(o, me) && b.overlaps(&o.bbox.inflated(halo)) {
-                                    adjncy.push(j as metis::Idx);
-                                }
+        let boxes: Vec<Aabb> = items
+            .iter()
+            .map(|it| it.bbox.inflated(graph_halo))
+            .collect();
+        for (i, it) in items.iter().enumerate() {
+            let c = grid.coords(it.point);
+            let lo = c.map(|x| x.saturating_sub(1));
+            let hi = [0, 1, 2].map(|k| (c[k] + 1).min(grid.dims[k] - 1));
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let cell = grid.index([x, y, z]);
+                        for &j in &by_cell[start[cell]..start[cell + 1]] {
+                            if j as usize != i && boxes[i].overlaps(&boxes[j as usize]) {
+                                adjncy.push(j as metis::Idx);
                             }
                         }
                     }
@@ -124,21 +176,29 @@ fn partition_on_root(
             .map_err(|e| PartitionError::Metis(format!("{e:?}")))?;
         owners = part;
     }
-    // Each cell goes wholly to the rank holding most of its weight.
-    for (c, members) in &cells {
-        let mut w: HashMap<i32, f64> = HashMap::new();
+    // Each occupied cell goes wholly to the rank holding most of its weight.
+    grid.owner = vec![-1; grid.len()];
+    let mut weight_of = vec![0.0f64; nparts.max(1) as usize];
+    for c in 0..grid.len() {
+        let members = &by_cell[start[c]..start[c + 1]];
+        if members.is_empty() {
+            continue;
+        }
         for &i in members {
-            *w.entry(owners[i as usize]).or_default() +=
+            weight_of[owners[i as usize] as usize] +=
                 items[i as usize].weight.max(f64::MIN_POSITIVE);
         }
-        let best = w
-            .into_iter()
-            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)))
-            .map_or(0, |(r, _)| r);
-        grid.owner.insert(*c, best);
-        for &i in members {
-            owners[i as usize] = best;
+        let mut best = 0usize;
+        for r in 0..weight_of.len() {
+            if weight_of[r] > weight_of[best] {
+                best = r;
+            }
         }
+        for &i in members {
+            weight_of[owners[i as usize] as usize] = 0.0;
+            owners[i as usize] = best as i32;
+        }
+        grid.owner[c] = best as i32;
     }
     Ok((owners, grid))
 }
@@ -164,23 +224,39 @@ impl Partitioner for MetisPartitioner {
             root.gather_into(&n);
         }
         let displs = displacements(&counts);
-        let mut all = vec![Item::default(); counts.iter().sum::<Count>() as usize];
-        let (mut result, mut status) = (Vec::new(), 0i32);
+        let mut result = Vec::new();
+        let mut status = 0i32;
         let mut message = String::new();
-        let mut cellmap: Vec<i64> = Vec::new();
-        let mut header = [0.0f64; 4];
+        let mut grid = Grid::default();
+        // origin, size, dims
+        let mut header = [0.0f64; 7];
         if comm.rank() == 0 {
+            let mut all = vec![Item::default(); counts.iter().sum::<Count>() as usize];
             {
                 let mut r = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
                 root.gather_varcount_into_root(items, &mut r);
             }
-            match partition_on_root(&all, size, self.halo) {
-                Ok((owners, grid)) => {
-                    result = owners;
-                    header = [grid.origin[0], grid.origin[1], grid.origin[2], grid.size];
-                    for (c, r) in &grid.owner {
-                        cellmap.extend_from_slice(&[c[0], c[1], c[2], *r as i64]);
+            // Sort by id so the graph, and METIS's answer, do not depend on
+            // where the items happen to be stored.
+            let mut order: Vec<usize> = (0..all.len()).collect();
+            order.sort_unstable_by_key(|&i| all[i].id);
+            let sorted: Vec<Item> = order.iter().map(|&i| all[i]).collect();
+            match partition_on_root(&sorted, size, self.halo) {
+                Ok((owners, g)) => {
+                    result = vec![0; all.len()];
+                    for (k, &i) in order.iter().enumerate() {
+                        result[i] = owners[k];
                     }
+                    header = [
+                        g.origin[0],
+                        g.origin[1],
+                        g.origin[2],
+                        g.size,
+                        g.dims[0] as f64,
+                        g.dims[1] as f64,
+                        g.dims[2] as f64,
+                    ];
+                    grid = g;
                 }
                 Err(e) => {
                     status = 1;
@@ -200,19 +276,17 @@ impl Partitioner for MetisPartitioner {
             }));
         }
         root.broadcast_into(&mut header[..]);
-        let mut ncells = cellmap.len() as u64;
-        root.broadcast_into(&mut ncells);
-        cellmap.resize(ncells as usize, 0);
-        root.broadcast_into(&mut cellmap[..]);
-        let mut owner = HashMap::with_capacity(cellmap.len() / 4);
-        for c in cellmap.chunks_exact(4) {
-            owner.insert([c[0], c[1], c[2]], c[3] as i32);
+        if comm.rank() != 0 {
+            grid = Grid {
+                origin: [header[0], header[1], header[2]],
+                size: header[3],
+                dims: [header[4] as usize, header[5] as usize, header[6] as usize],
+                owner: Vec::new(),
+            };
+            grid.owner = vec![-1; grid.len()];
         }
-        self.grid = Some(Grid {
-            origin: [header[0], header[1], header[2]],
-            size: header[3],
-            owner,
-        });
+        root.broadcast_into(&mut grid.owner[..]);
+        self.grid = Some(grid);
         // Scatter the owners back in gather order.
         let mut mine = vec![0i32; items.len()];
         if comm.rank() == 0 {
@@ -226,22 +300,27 @@ impl Partitioner for MetisPartitioner {
 
     fn owner(&self, p: [f64; 3]) -> Result<i32, PartitionError> {
         let Some(g) = &self.grid else { return Ok(0) };
-        let c = g.cell(p);
-        if let Some(&r) = g.owner.get(&c) {
+        let c = g.coords(p);
+        let r = g.owner[g.index(c)];
+        if r >= 0 {
             return Ok(r);
         }
-        // An empty cell: the owner of the nearest occupied cell in growing shells.
-        for radius in 1..=4i64 {
-            let mut best: Option<(i64, i32)> = None;
-            for dx in -radius..=radius {
-                for dy in -radius..=radius {
-                    for dz in -radius..=radius {
-                        if dx.abs().max(dy.abs()).max(dz.abs()) != radius {
-                            continue;
-                        }
-                        if let Some(&r) = g.owner.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) {
-                            let d2 = dx * dx + dy * dy + dz * dz;
-                            if best.is_none_or(|(bd, br)| (d2, r) < (bd, br)) {
+        // An empty cell: the owner of the nearest occupied cell, in growing shells.
+        let max_radius = g.dims.iter().copied().max().unwrap_or(1);
+        for radius in 1..=max_radius {
+            let lo = c.map(|x| x.saturating_sub(radius));
+            let hi = [0, 1, 2].map(|k| (c[k] + radius).min(g.dims[k] - 1));
+            let mut best: Option<(usize, i32)> = None;
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in lo[0]..=hi[0] {
+                        let r = g.owner[g.index([x, y, z])];
+                        if r >= 0 {
+                            let d2 = [x.abs_diff(c[0]), y.abs_diff(c[1]), z.abs_diff(c[2])]
+                                .iter()
+                                .map(|d| d * d)
+                                .sum::<usize>();
+                            if best.is_none_or(|b| (d2, r) < b) {
                                 best = Some((d2, r));
                             }
                         }
@@ -260,31 +339,18 @@ impl Partitioner for MetisPartitioner {
             out.push(0);
             return Ok(());
         };
-        let (lo, hi) = (g.cell(b.lo), g.cell(b.hi));
-        let span: i64 = (0..3).map(|k| hi[k] - lo[k] + 1).product();
+        let (lo, hi) = (g.coords(b.lo), g.coords(b.hi));
         let start = out.len();
-        if span as usize > g.owner.len() {
-            // A box larger than the occupied grid: scan the map instead.
-            for (c, &r) in &g.owner {
-                if (0..3).all(|k| lo[k] <= c[k] && c[k] <= hi[k]) {
-                    out.push(r);
-                }
-            }
-        } else {
-            for x in lo[0]..=hi[0] {
-                for y in lo[1]..=hi[1] {
-                    for z in lo[2]..=hi[2] {
-                        if let Some(&r) = g.owner.get(&[x, y, z]) {
-                            out.push(r);
-                        }
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    let r = g.owner[g.index([x, y, z])];
+                    if r >= 0 && !out[start..].contains(&r) {
+                        out.push(r);
                     }
                 }
             }
         }
-        let mut mine: Vec<i32> = out.split_off(start);
-        mine.sort_unstable();
-        mine.dedup();
-        out.extend(mine);
         Ok(())
     }
 }

@@ -1,0 +1,259 @@
+//! `tridem partition`: one partitioner on a synthetic workload, step by step,
+//! measuring what load balancing costs and buys.
+
+use crate::cli::PartitionArgs;
+use crate::error::{CliError, CliResult};
+use indicatif::{ProgressBar, ProgressStyle};
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
+use partition::ghosts::exchange_ghosts;
+use partition::metrics::{collect, StepMetrics};
+use partition::migrate::migrate;
+use partition::workload::Spec;
+use std::io::Write;
+use std::time::Instant;
+
+pub fn run(args: &PartitionArgs) -> CliResult {
+    if args.every == 0 || args.steps == 0 {
+        return Err(CliError::input("--steps and --every must be at least 1"));
+    }
+    if args.items == 0 {
+        return Err(CliError::input("--items must be at least 1"));
+    }
+    let universe =
+        mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
+    let world = universe.world();
+    let (me, size) = (world.rank(), world.size());
+    let spec = Spec::new(args.workload, args.items);
+    let halo = args.halo.unwrap_or(0.25 * spec.size);
+    if !(halo.is_finite() && halo >= 0.0) {
+        return Err(CliError::input(format!(
+            "--halo must be a finite non-negative number, got {halo}"
+        )));
+    }
+    // The partitioners use rayon's global pool (MPI handles cannot cross into
+    // another pool's closures), so size it once here.
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build_global()
+        .map_err(|e| CliError::runtime(e.to_string()))?;
+    let mut part = args
+        .partitioner
+        .create(&world, halo)
+        .map_err(|e| CliError::runtime(e.to_string()))?;
+
+    let csv_path = match (&args.output, me) {
+        (Some(dir), 0) => {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
+            Some(dir.join(format!(
+                "partition-{}-{}-{}ranks.csv",
+                args.partitioner.name(),
+                workload_name(args),
+                size
+            )))
+        }
+        _ => None,
+    };
+    let bar = (me == 0 && args.steps > 1).then(|| {
+        ProgressBar::new(args.steps as u64).with_style(
+            ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} steps {elapsed}")
+                .expect("template")
+                .progress_chars("=> "),
+        )
+    });
+    if let Some(b) = &bar {
+        b.set_message(args.partitioner.name());
+    }
+
+    let mut local = spec.initial(me, size);
+    let mut records: Vec<StepMetrics> = Vec::new();
+    if me == 0 && !args.json {
+        print_header(size, args, halo);
+    }
+    for step in 0..args.steps {
+        let t = if args.steps > 1 {
+            step as f64 / (args.steps - 1) as f64
+        } else {
+            0.0
+        };
+        spec.advance(&mut local, t);
+        if step % args.every == 0 {
+            let imbalance_before = imbalance(&world, &local);
+            world.barrier();
+            let start = Instant::now();
+            let owners = part
+                .partition(&world, &local.items)
+                .map_err(|e| CliError::runtime(e.to_string()))?;
+            let partition_s = start.elapsed().as_secs_f64();
+            let start = Instant::now();
+            let (moved, mstats) = migrate(&world, std::mem::take(&mut local), &owners);
+            local = moved;
+            let migrate_s = start.elapsed().as_secs_f64();
+            let ghosts = exchange_ghosts(&world, part.as_ref(), &local, halo)
+                .map_err(|e| CliError::runtime(e.to_string()))?;
+            let m = collect(
+                &world,
+                step,
+                part.name(),
+                &local,
+                partition_s,
+                migrate_s,
+                &mstats,
+                &ghosts,
+            );
+            let queries_per_s = box_query_rate(&world, part.as_ref(), &local, halo)?;
+            if me == 0 {
+                let record = serde_json::json!({
+                    "step": m.step, "partitioner": m.partitioner, "workload": workload_name(args),
+                    "ranks": m.ranks, "items": m.items, "imbalance_before": imbalance_before,
+                    "imbalance": m.imbalance, "partition_s": m.partition_s, "migrate_s": m.migrate_s,
+                    "migrated_items": m.migrated_items, "migrated_bytes": m.migrated_bytes,
+                    "ghost_items": m.ghost_items, "ghost_bytes": m.ghost_bytes,
+                    "neighbours_max": m.neighbours_max, "neighbours_mean": m.neighbours_mean,
+                    "halo": halo, "box_queries_per_s": queries_per_s,
+                });
+                if args.json {
+                    match &bar {
+                        Some(b) => b.suspend(|| println!("{record}")),
+                        None => println!("{record}"),
+                    }
+                } else {
+                    let line = format_row(&m, imbalance_before);
+                    match &bar {
+                        Some(b) => b.suspend(|| println!("{line}")),
+                        None => println!("{line}"),
+                    }
+                }
+            }
+            records.push(m);
+        }
+        if let Some(b) = &bar {
+            b.inc(1);
+        }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    if let Some(path) = csv_path {
+        write_csv(&path, &records, args)?;
+        eprintln!("wrote {}", path.display());
+    }
+    Ok(())
+}
+
+/// Box queries per second on the slowest rank: every local item's box,
+/// inflated by the halo, as in ghost search.
+fn box_query_rate(
+    world: &mpi::topology::SimpleCommunicator,
+    part: &dyn partition::Partitioner,
+    local: &partition::LocalItems,
+    halo: f64,
+) -> CliResult<f64> {
+    let mut buf = Vec::with_capacity(16);
+    let start = Instant::now();
+    for it in &local.items {
+        buf.clear();
+        part.ranks_overlapping(&it.bbox.inflated(halo), &mut buf)
+            .map_err(|e| CliError::runtime(e.to_string()))?;
+        std::hint::black_box(&buf);
+    }
+    let dt = start.elapsed().as_secs_f64();
+    let rate = if dt > 0.0 {
+        local.items.len() as f64 / dt
+    } else {
+        f64::INFINITY
+    };
+    let mut slowest = 0.0;
+    world.all_reduce_into(&rate, &mut slowest, SystemOperation::min());
+    Ok(slowest)
+}
+
+fn workload_name(args: &PartitionArgs) -> &'static str {
+    match args.workload {
+        partition::workload::Workload::Uniform => "uniform",
+        partition::workload::Workload::Blobs => "blobs",
+        partition::workload::Workload::Hopper => "hopper",
+    }
+}
+
+/// Max over mean of the ranks' weights as currently owned.
+fn imbalance(world: &mpi::topology::SimpleCommunicator, local: &partition::LocalItems) -> f64 {
+    let w: f64 = local.items.iter().map(|i| i.weight).sum();
+    let (mut max, mut sum) = (0.0, 0.0);
+    world.all_reduce_into(&w, &mut max, SystemOperation::max());
+    world.all_reduce_into(&w, &mut sum, SystemOperation::sum());
+    if sum > 0.0 {
+        max / (sum / world.size() as f64)
+    } else {
+        1.0
+    }
+}
+
+fn print_header(size: i32, args: &PartitionArgs, halo: f64) {
+    println!(
+        "{} on {} ranks: {} items, workload {}, halo {halo:.3e}, {} steps, repartition every {}",
+        args.partitioner.name(),
+        size,
+        args.items,
+        workload_name(args),
+        args.steps,
+        args.every
+    );
+    println!(
+        "{:>5} {:>10} {:>9} {:>11} {:>9} {:>10} {:>12} {:>9} {:>12} {:>6}",
+        "step",
+        "imb.before",
+        "imbalance",
+        "partition s",
+        "migrate s",
+        "migrated",
+        "migrated B",
+        "ghosts",
+        "ghost B",
+        "neigh"
+    );
+}
+
+fn format_row(m: &StepMetrics, before: f64) -> String {
+    format!(
+        "{:>5} {:>10.4} {:>9.4} {:>11.4} {:>9.4} {:>10} {:>12} {:>9} {:>12} {:>6}",
+        m.step,
+        before,
+        m.imbalance,
+        m.partition_s,
+        m.migrate_s,
+        m.migrated_items,
+        m.migrated_bytes,
+        m.ghost_items,
+        m.ghost_bytes,
+        m.neighbours_max
+    )
+}
+
+fn write_csv(path: &std::path::Path, records: &[StepMetrics], args: &PartitionArgs) -> CliResult {
+    let mut f = std::fs::File::create(path)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))?;
+    let mut text = String::from("step,partitioner,workload,ranks,items,imbalance,partition_s,migrate_s,migrated_items,migrated_bytes,ghost_items,ghost_bytes,neighbours_max,neighbours_mean\n");
+    for m in records {
+        text.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            m.step,
+            m.partitioner,
+            workload_name(args),
+            m.ranks,
+            m.items,
+            m.imbalance,
+            m.partition_s,
+            m.migrate_s,
+            m.migrated_items,
+            m.migrated_bytes,
+            m.ghost_items,
+            m.ghost_bytes,
+            m.neighbours_max,
+            m.neighbours_mean
+        ));
+    }
+    f.write_all(text.as_bytes())
+        .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))
+}
