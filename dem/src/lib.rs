@@ -4,3 +4,4 @@
 //!   brute force, SIMD-batched penalty Newton, and the hybrid of the two).
 
 pub mod distance;
+pub mod mesh;

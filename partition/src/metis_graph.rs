@@ -26,6 +26,9 @@ use mpi::Count;
 /// connected graph, few enough to keep the serial graph build and METIS cheap.
 const GRAPH_SPACING: f64 = 0.35;
 
+/// Nearest neighbours kept per item besides its contact pairs.
+const MAX_NEIGHBOURS: usize = 10;
+
 /// Cells per item at most: the grid is dense, so its size is bounded by the items.
 const MAX_CELLS_PER_ITEM: f64 = 4.0;
 
@@ -137,28 +140,75 @@ fn partition_on_root(
     }
     let mut owners = vec![0i32; n];
     if nparts > 1 && n > 0 {
-        let mut xadj: Vec<metis::Idx> = Vec::with_capacity(n + 1);
-        let mut adjncy: Vec<metis::Idx> = Vec::new();
-        xadj.push(0);
-        let boxes: Vec<Aabb> = items
+        // Edges: all contact pairs (found from both ends), plus up to
+        // MAX_NEIGHBOURS nearest within the graph halo (dense regions would
+        // otherwise get hundreds per item), made symmetric as METIS requires.
+        // Work in cell order so that neighbouring cells are neighbours in memory.
+        let pts: Vec<[f64; 3]> = by_cell.iter().map(|&i| items[i as usize].point).collect();
+        let contact_boxes: Vec<Aabb> = by_cell
             .iter()
-            .map(|it| it.bbox.inflated(graph_halo))
+            .map(|&i| items[i as usize].bbox.inflated(halo))
             .collect();
-        for (i, it) in items.iter().enumerate() {
-            let c = grid.coords(it.point);
-            let lo = c.map(|x| x.saturating_sub(1));
-            let hi = [0, 1, 2].map(|k| (c[k] + 1).min(grid.dims[k] - 1));
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        let cell = grid.index([x, y, z]);
-                        for &j in &by_cell[start[cell]..start[cell + 1]] {
-                            if j as usize != i && boxes[i].overlaps(&boxes[j as usize]) {
-                                adjncy.push(j as metis::Idx);
+        let graph_boxes: Vec<Aabb> = by_cell
+            .iter()
+            .map(|&i| items[i as usize].bbox.inflated(graph_halo))
+            .collect();
+        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(n * MAX_NEIGHBOURS);
+        let mut near: Vec<(f64, u32)> = Vec::new();
+        for cz in 0..grid.dims[2] {
+            for cy in 0..grid.dims[1] {
+                for cx in 0..grid.dims[0] {
+                    let c = [cx, cy, cz];
+                    let cell = grid.index(c);
+                    if start[cell] == start[cell + 1] {
+                        continue;
+                    }
+                    let lo = c.map(|x| x.saturating_sub(1));
+                    let hi = [0, 1, 2].map(|k| (c[k] + 1).min(grid.dims[k] - 1));
+                    for k in start[cell]..start[cell + 1] {
+                        near.clear();
+                        for z in lo[2]..=hi[2] {
+                            for y in lo[1]..=hi[1] {
+                                let row0 = grid.index([lo[0], y, z]);
+                                let row1 = grid.index([hi[0], y, z]);
+                                // Cells lo[0]..=hi[0] of a row are contiguous: one range.
+                                for k2 in start[row0]..start[row1 + 1] {
+                                    if k2 == k {
+                                        continue;
+                                    }
+                                    if contact_boxes[k].overlaps(&contact_boxes[k2]) {
+                                        edges.push((by_cell[k], by_cell[k2]));
+                                    } else if graph_boxes[k].overlaps(&graph_boxes[k2]) {
+                                        let d: f64 =
+                                            (0..3).map(|a| (pts[k2][a] - pts[k][a]).powi(2)).sum();
+                                        near.push((d, by_cell[k2]));
+                                    }
+                                }
                             }
+                        }
+                        if near.len() > MAX_NEIGHBOURS {
+                            near.select_nth_unstable_by(MAX_NEIGHBOURS, |a, b| a.0.total_cmp(&b.0));
+                            near.truncate(MAX_NEIGHBOURS);
+                        }
+                        let i = by_cell[k];
+                        for &(_, j) in &near {
+                            edges.push((i, j));
+                            edges.push((j, i));
                         }
                     }
                 }
+            }
+        }
+        edges.sort_unstable();
+        edges.dedup();
+        let mut xadj: Vec<metis::Idx> = Vec::with_capacity(n + 1);
+        let mut adjncy: Vec<metis::Idx> = Vec::with_capacity(edges.len());
+        xadj.push(0);
+        let mut e = 0;
+        for i in 0..n as u32 {
+            while e < edges.len() && edges[e].0 == i {
+                adjncy.push(edges[e].1 as metis::Idx);
+                e += 1;
             }
             xadj.push(adjncy.len() as metis::Idx);
         }

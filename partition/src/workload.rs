@@ -64,7 +64,7 @@ impl Workload {
             Workload::Hopper => {
                 let (x0, y0, z0) = (unit(id, 1), unit(id, 2), 1.0 + unit(id, 3));
                 // Fall 1.8 over the run; below z = 1 the funnel draws items to its axis.
-                let floor = 0.05 * unit(id, 5);
+                let floor = 0.3 * unit(id, 5);
                 let z = (z0 - 1.8 * t).max(floor);
                 let squeeze = z.clamp(0.15, 1.0);
                 [0.5 + (x0 - 0.5) * squeeze, 0.5 + (y0 - 0.5) * squeeze, z]
@@ -85,8 +85,10 @@ pub struct Spec {
 
 impl Spec {
     pub fn new(workload: Workload, items: u64) -> Self {
-        // About half the mean spacing of uniformly spread items.
-        let size = 0.5 / (items.max(1) as f64).cbrt();
+        // A tenth of the mean spacing of uniformly spread items, so that even the
+        // densest state (blobs, the hopper's pile: about a third of that
+        // spacing) has triangles that do not interpenetrate much.
+        let size = 0.1 / (items.max(1) as f64).cbrt();
         Spec {
             workload,
             items,

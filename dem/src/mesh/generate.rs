@@ -1,0 +1,102 @@
+//! Generated shapes: boxes, tetrahedra, and the published granulate: the convex
+//! hull of random points on a sphere.
+
+use super::TriMesh;
+use glam::DVec3;
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// An axis-aligned box of the given size centred on the origin.
+pub fn box_mesh(size: DVec3) -> TriMesh {
+    let h = size * 0.5;
+    let v: Vec<DVec3> = (0..8)
+        .map(|i| {
+            DVec3::new(
+                if i & 1 == 0 { -h.x } else { h.x },
+                if i & 2 == 0 { -h.y } else { h.y },
+                if i & 4 == 0 { -h.z } else { h.z },
+            )
+        })
+        .collect();
+    let t = vec![
+        [0, 2, 1],
+        [1, 2, 3], // z-
+        [4, 5, 6],
+        [5, 7, 6], // z+
+        [0, 1, 4],
+        [1, 5, 4], // y-
+        [2, 6, 3],
+        [3, 6, 7], // y+
+        [0, 4, 2],
+        [2, 4, 6], // x-
+        [1, 3, 5],
+        [3, 7, 5], // x+
+    ];
+    TriMesh::new(v, t).expect("the box mesh is valid")
+}
+
+/// A regular tetrahedron with circumradius `r`, centred on the origin.
+pub fn tetrahedron(r: f64) -> TriMesh {
+    let s = r / 3f64.sqrt();
+    let v = vec![
+        DVec3::new(s, s, s),
+        DVec3::new(s, -s, -s),
+        DVec3::new(-s, s, -s),
+        DVec3::new(-s, -s, s),
+    ];
+    TriMesh::new(v, vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
+        .expect("the tetrahedron is valid")
+}
+
+/// Convex hull of random points on a sphere of radius `r`, with `triangles`
+/// faces (even, at least 4: a hull of V points in general position has 2V - 4).
+pub fn sphere_hull(triangles: usize, r: f64, seed: u64) -> TriMesh {
+    let points = (triangles.max(4) + 4) / 2;
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    for _attempt in 0..64 {
+        let pts: Vec<parry3d_f64::math::Vector> = (0..points)
+            .map(|_| {
+                // Uniform on the sphere: normalised Gaussian vectors.
+                let g = |rng: &mut Xoshiro256PlusPlus| {
+                    let u1: f64 = rng.random::<f64>().max(1e-300);
+                    let u2: f64 = rng.random();
+                    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+                };
+                let d = DVec3::new(g(&mut rng), g(&mut rng), g(&mut rng)).normalize() * r;
+                parry3d_f64::math::Vector::new(d.x, d.y, d.z)
+            })
+            .collect();
+        let (v, t) = parry3d_f64::transformation::convex_hull(&pts);
+        let vertices: Vec<DVec3> = v.iter().map(|p| DVec3::new(p.x, p.y, p.z)).collect();
+        if let Ok(mesh) = TriMesh::new(vertices, t) {
+            if mesh.triangles.len() == 2 * points - 4 {
+                // Centre the mesh on its centre of mass.
+                let c = super::MassProperties::of(&mesh, 1.0).centroid;
+                return mesh.translated(-c);
+            }
+        }
+    }
+    // Points in degenerate position 64 times in a row: fall back to a tetrahedron.
+    tetrahedron(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hull_has_the_requested_triangles_and_is_convex() {
+        for n in [4, 8, 20, 60] {
+            let m = sphere_hull(n, 0.01, 3);
+            assert_eq!(m.triangles.len(), n);
+            // Convex: every vertex on the inner side of every face plane.
+            for i in 0..m.triangles.len() {
+                let [a, b, c] = m.triangle(i);
+                let nrm = (b - a).cross(c - a);
+                for v in &m.vertices {
+                    assert!(nrm.dot(*v - a) <= 1e-12 * nrm.length() * 0.01);
+                }
+            }
+        }
+    }
+}
