@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# The main job: installs what is missing, builds in release mode, runs on 2 MPI ranks.
-# Usage: scripts/main-job.sh [RANKS]
+# The main job: installs what is missing, builds in release mode, checks the MPI stack
+# on 2 ranks (tridem info), then runs the hopper scene with HDF5 + XDMF output.
+# Usage: scripts/main-job.sh [OUTPUT_DIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
 scripts/install-deps.sh
 cargo build --release -p experiments
-ranks=${1:-2}
-echo "main-job: mpirun -np $ranks target/release/tridem info"
-mpirun --oversubscribe -np "$ranks" target/release/tridem info
+out=${1:-out/hopper}
+echo "main-job: mpirun -np 2 target/release/tridem info"
+mpirun --oversubscribe -np 2 target/release/tridem info
+echo "main-job: target/release/tridem run scenes/hopper.toml --output $out"
+target/release/tridem run scenes/hopper.toml --output "$out"

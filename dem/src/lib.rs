@@ -2,6 +2,17 @@
 //!
 //! - [`distance`]: minimum distance between triangles by three methods (exact
 //!   brute force, SIMD-batched penalty Newton, and the hybrid of the two).
+//! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
+//! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
+//!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
 
+pub mod body;
+pub mod contact;
 pub mod distance;
+pub mod effects;
+pub mod integrate;
+pub mod material;
 pub mod mesh;
+pub mod scene;
+pub mod simulation;
+pub mod world;

@@ -25,6 +25,29 @@ pub enum Command {
     Kernels(KernelsArgs),
     /// Partition a synthetic workload with one partitioner (run under mpirun).
     Partition(PartitionArgs),
+    /// Run a DEM scene (TOML) on this node.
+    Run(RunArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Steps to run (default: end_time / dt of the scene).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Write HDF5 + XDMF output to this directory.
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 #[derive(Args, Debug)]

@@ -5,9 +5,11 @@ mod distance_cmd;
 mod error;
 mod info;
 mod kernels;
+mod output;
 mod pairs_csv;
 mod partition_cmd;
 mod plot;
+mod run_cmd;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -19,6 +21,7 @@ fn main() -> ExitCode {
         cli::Command::Distance(args) => distance_cmd::run(&args),
         cli::Command::Kernels(args) => kernels::run(&args),
         cli::Command::Partition(args) => partition_cmd::run(&args),
+        cli::Command::Run(args) => run_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

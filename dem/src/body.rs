@@ -1,0 +1,61 @@
+//! Rigid bodies: a shared mesh in body coordinates, and the state that moves it.
+
+use glam::{DMat3, DQuat, DVec3};
+
+/// A rigid particle or a static obstacle.
+#[derive(Debug, Clone)]
+pub struct Body {
+    /// Index of the shape in `World::shapes` (vertices relative to the centre of mass).
+    pub shape: usize,
+    pub material: usize,
+    /// Position of the centre of mass.
+    pub x: DVec3,
+    pub q: DQuat,
+    pub v: DVec3,
+    /// Angular momentum in world axes: conserved exactly by the integrator when no torque acts.
+    pub l: DVec3,
+    /// 0 for a static obstacle.
+    pub inv_mass: f64,
+    pub mass: f64,
+    /// Inverse inertia tensor in body axes (zero for an obstacle).
+    pub inv_inertia_body: DMat3,
+    pub inertia_body: DMat3,
+}
+
+impl Body {
+    pub fn is_static(&self) -> bool {
+        self.inv_mass == 0.0
+    }
+
+    /// Rotation matrix body -> world.
+    pub fn rotation(&self) -> DMat3 {
+        DMat3::from_quat(self.q)
+    }
+
+    /// Angular velocity in world axes: ω = R I⁻¹ Rᵀ L.
+    pub fn omega(&self) -> DVec3 {
+        omega_of(self.q, self.inv_inertia_body, self.l)
+    }
+
+    /// Velocity of the body's material point at world position `p`.
+    pub fn velocity_at(&self, p: DVec3) -> DVec3 {
+        self.v + self.omega().cross(p - self.x)
+    }
+
+    pub fn kinetic_energy(&self) -> f64 {
+        if self.is_static() {
+            return 0.0;
+        }
+        0.5 * self.mass * self.v.length_squared() + 0.5 * self.l.dot(self.omega())
+    }
+
+    /// World-space vertex of the body's shape.
+    pub fn to_world(&self, local: DVec3) -> DVec3 {
+        self.x + self.q * local
+    }
+}
+
+/// ω = R I⁻¹ Rᵀ L for orientation q.
+pub fn omega_of(q: DQuat, inv_inertia_body: DMat3, l: DVec3) -> DVec3 {
+    q * (inv_inertia_body * (q.inverse() * l))
+}

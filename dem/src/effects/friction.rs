@@ -1,0 +1,106 @@
+//! Coulomb friction with a tangential spring and history, one per body pair.
+//!
+//! A body pair in contact carries an elastic tangential displacement ξ at the
+//! depth-weighted centre c of its contact points, with the depth-weighted mean
+//! normal n. Every step ξ is turned into the current tangent plane and grows by
+//! v_t dt (v_t: tangential relative velocity at c); the force is F_t = −k_t ξ
+//! − c_t v_t with k_t = (2/7) k, the usual ratio for a linear spring model,
+//! and c_t = 2 ζ √(m* k_t) damped like the normal spring (ζ from the
+//! restitution), so that a resting contact does not ring. When
+//! |F_t| > μ F_n (F_n: the pair's total normal force) the pair slides: F_t is
+//! cut to μ F_n and ξ set to match it, ξ = −(F_t + c_t v_t)/k_t. Keeping the history per pair, not per
+//! triangle pair, makes static friction hold on flat contacts, whose contact
+//! points the triangle kernel places anywhere on the shared face. A pair that
+//! separates forgets its history.
+
+use super::{Effect, Forces, StepContext};
+use crate::material::damping_ratio;
+use crate::world::World;
+use glam::DVec3;
+use std::collections::HashMap;
+
+pub struct FrictionEffect {
+    mu: Vec<f64>,
+    stiffness: Vec<f64>,
+    restitution: Vec<f64>,
+    history: HashMap<(usize, usize), DVec3>,
+}
+
+impl FrictionEffect {
+    pub fn new(world: &World) -> Self {
+        let per = |f: fn(&crate::material::Material) -> Option<f64>| -> Vec<f64> {
+            world
+                .bodies
+                .iter()
+                .map(|b| f(&world.materials[b.material]).unwrap_or(0.0))
+                .collect()
+        };
+        FrictionEffect {
+            mu: per(|m| m.friction),
+            stiffness: per(|m| m.stiffness),
+            restitution: per(|m| m.restitution),
+            history: HashMap::new(),
+        }
+    }
+}
+
+impl Effect for FrictionEffect {
+    fn name(&self) -> &'static str {
+        "friction"
+    }
+
+    fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
+        let mut next = HashMap::new();
+        let contacts = &ctx.contacts;
+        let mut start = 0;
+        // Contacts come grouped by body pair.
+        while start < contacts.len() {
+            let (a, b) = (contacts[start].a, contacts[start].b);
+            let mut end = start;
+            let (mut c, mut n, mut w, mut f_n) = (DVec3::ZERO, DVec3::ZERO, 0.0, 0.0);
+            while end < contacts.len() && contacts[end].a == a && contacts[end].b == b {
+                let k = &contacts[end];
+                c += k.point * k.depth;
+                n += k.normal * k.depth;
+                w += k.depth;
+                f_n += ctx.normal_force[end];
+                end += 1;
+            }
+            start = end;
+            let Some(n) = n.try_normalize() else { continue };
+            if w <= 0.0 {
+                continue;
+            }
+            let c = c / w;
+            let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
+            let v_rel = ba.velocity_at(c) - bb.velocity_at(c);
+            let v_t = v_rel - n * v_rel.dot(n);
+            let mut xi = self.history.get(&(a, b)).copied().unwrap_or(DVec3::ZERO);
+            // Turn the stored displacement into the current tangent plane, keeping its length.
+            let len = xi.length();
+            xi -= n * xi.dot(n);
+            if let Some(dir) = xi.try_normalize() {
+                xi = dir * len;
+            }
+            xi += v_t * ctx.dt;
+            let (ka, kb) = (self.stiffness[a], self.stiffness[b]);
+            let k_t = (2.0 / 7.0) * (ka * kb / (ka + kb));
+            let mu = (self.mu[a] * self.mu[b]).sqrt();
+            let m = 1.0 / (ba.inv_mass + bb.inv_mass);
+            let zeta = damping_ratio(0.5 * (self.restitution[a] + self.restitution[b]));
+            let c_t = 2.0 * zeta * (m * k_t).sqrt();
+            let mut f_t = -xi * k_t - v_t * c_t;
+            let cap = mu * f_n;
+            let mag = f_t.length();
+            if mag > cap {
+                f_t *= if mag > 0.0 { cap / mag } else { 0.0 };
+                xi = -(f_t + v_t * c_t) / k_t;
+            }
+            forces.add_at(a, ba.x, c, f_t);
+            forces.add_at(b, bb.x, c, -f_t);
+            next.insert((a, b), xi);
+            ctx.stats.tangential_evaluations += 1;
+        }
+        self.history = next;
+    }
+}

@@ -1,0 +1,82 @@
+//! The effects a scene can declare, each its own unit of the step pipeline.
+//!
+//! Only declared effects are constructed, so an undeclared effect costs
+//! nothing and cannot act. Each effect adds forces and torques; effects that
+//! need what another found (friction needs the contacts and their normal
+//! forces) read it from the [`StepContext`].
+
+mod contact;
+mod damping;
+mod friction;
+mod gravity;
+
+pub use contact::ContactEffect;
+pub use damping::DampingEffect;
+pub use friction::FrictionEffect;
+pub use gravity::GravityEffect;
+
+use crate::contact::{Contact, DetectionStats};
+use crate::world::World;
+use glam::DVec3;
+
+/// Force and torque on every body, accumulated by the effects.
+#[derive(Debug, Clone, Default)]
+pub struct Forces {
+    pub force: Vec<DVec3>,
+    pub torque: Vec<DVec3>,
+}
+
+impl Forces {
+    pub fn reset(&mut self, n: usize) {
+        self.force.clear();
+        self.force.resize(n, DVec3::ZERO);
+        self.torque.clear();
+        self.torque.resize(n, DVec3::ZERO);
+    }
+
+    /// Applies `f` at world point `p` on body `i` (centre of mass `x`).
+    pub fn add_at(&mut self, i: usize, x: DVec3, p: DVec3, f: DVec3) {
+        self.force[i] += f;
+        self.torque[i] += (p - x).cross(f);
+    }
+}
+
+/// What the effects of one step share and count.
+#[derive(Debug, Default)]
+pub struct StepContext {
+    pub dt: f64,
+    pub contacts: Vec<Contact>,
+    /// Normal force magnitude of each contact (0 where the spring is in tension).
+    pub normal_force: Vec<f64>,
+    pub stats: StepStats,
+}
+
+/// Counters of one step, summed over a run by the caller.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StepStats {
+    pub detection: DetectionStats,
+    pub normal_evaluations: u64,
+    pub tangential_evaluations: u64,
+}
+
+impl std::ops::AddAssign for StepStats {
+    fn add_assign(&mut self, o: StepStats) {
+        self.detection.body_pairs += o.detection.body_pairs;
+        self.detection.triangle_pairs += o.detection.triangle_pairs;
+        self.detection.fallback_pairs += o.detection.fallback_pairs;
+        self.detection.contacts += o.detection.contacts;
+        self.detection.deep_contacts += o.detection.deep_contacts;
+        self.normal_evaluations += o.normal_evaluations;
+        self.tangential_evaluations += o.tangential_evaluations;
+    }
+}
+
+/// One effect of the step pipeline.
+pub trait Effect: Send {
+    fn name(&self) -> &'static str;
+    fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces);
+    /// Potential energy the effect stores (gravity, springs), for energy checks.
+    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
+        0.0
+    }
+}

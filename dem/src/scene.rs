@@ -1,0 +1,762 @@
+//! Scenes in TOML: materials, particles, obstacles, time stepping, and the
+//! list of effects. Every error names the file, the line and the cause.
+//!
+//! ```toml
+//! [simulation]
+//! dt = 1e-5              # s
+//! end_time = 0.2         # s
+//! output_every = 1000    # steps between outputs
+//!
+//! [effects]              # only these are computed
+//! gravity = { g = [0.0, 0.0, -9.81] }
+//! contact = {}           # needs stiffness, restitution, halo in every material
+//! friction = {}          # needs friction in every material
+//! damping = { linear = 0.5, angular = 0.5 }
+//! rotation = {}          # without it bodies only translate
+//!
+//! [[materials]]
+//! name = "glass"
+//! density = 2500.0
+//! stiffness = 1e4
+//! restitution = 0.5
+//! halo = 1e-4
+//! friction = 0.4
+//!
+//! [[particles]]
+//! material = "glass"
+//! shape = { kind = "hull", triangles = 20, radius = 0.005, seed = 1 }
+//! placement = { kind = "lattice", count = [3, 3, 3], spacing = 0.012, origin = [0.0, 0.0, 0.02] }
+//!
+//! [[obstacles]]
+//! material = "glass"
+//! shape = { kind = "box", size = [0.2, 0.2, 0.01] }
+//! position = [0.0, 0.0, -0.005]
+//! ```
+
+use crate::body::Body;
+use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
+use crate::material::{damping_ratio, Material};
+use crate::mesh::{box_mesh, load_mesh, sphere_hull, tetrahedron, MassProperties, TriMesh};
+use crate::world::World;
+use glam::{DMat3, DQuat, DVec3};
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// A scene error: where and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{file}:{line}: {cause}")]
+pub struct SceneError {
+    pub file: String,
+    pub line: usize,
+    pub cause: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    simulation: Spanned<SimulationSpec>,
+    effects: Spanned<EffectsSpec>,
+    #[serde(default)]
+    materials: Vec<Spanned<MaterialSpec>>,
+    #[serde(default)]
+    particles: Vec<Spanned<ParticleSpec>>,
+    #[serde(default)]
+    obstacles: Vec<Spanned<ObstacleSpec>>,
+    #[serde(default)]
+    kernel: Option<Spanned<KernelSpec>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SimulationSpec {
+    dt: f64,
+    end_time: f64,
+    #[serde(default = "default_output_every")]
+    output_every: u64,
+    /// Run with a step above the stable one (with a warning) instead of refusing.
+    #[serde(default)]
+    allow_unstable_dt: bool,
+}
+
+fn default_output_every() -> u64 {
+    1000
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct EffectsSpec {
+    gravity: Option<GravitySpec>,
+    contact: Option<EmptySpec>,
+    friction: Option<EmptySpec>,
+    damping: Option<DampingSpec>,
+    rotation: Option<EmptySpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EmptySpec {}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GravitySpec {
+    g: [f64; 3],
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DampingSpec {
+    #[serde(default)]
+    linear: f64,
+    #[serde(default)]
+    angular: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KernelSpec {
+    #[serde(default = "default_method")]
+    method: String,
+    #[serde(default = "default_batch")]
+    batch: usize,
+    #[serde(default)]
+    fallback_failed_pairs: bool,
+    #[serde(default)]
+    dynamic_schedule: bool,
+}
+
+fn default_method() -> String {
+    "hybrid".into()
+}
+fn default_batch() -> usize {
+    8
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialSpec {
+    name: String,
+    density: f64,
+    stiffness: Option<f64>,
+    restitution: Option<f64>,
+    halo: Option<f64>,
+    friction: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+enum ShapeSpec {
+    Hull {
+        triangles: usize,
+        radius: f64,
+        #[serde(default)]
+        seed: u64,
+    },
+    Box {
+        size: [f64; 3],
+    },
+    Tetrahedron {
+        radius: f64,
+    },
+    Mesh {
+        file: PathBuf,
+        #[serde(default = "one")]
+        scale: f64,
+    },
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields, tag = "kind", rename_all = "snake_case")]
+enum PlacementSpec {
+    Single {
+        position: [f64; 3],
+    },
+    Lattice {
+        count: [usize; 3],
+        spacing: f64,
+        origin: [f64; 3],
+    },
+    Random {
+        count: usize,
+        lo: [f64; 3],
+        hi: [f64; 3],
+        #[serde(default)]
+        seed: u64,
+    },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ParticleSpec {
+    material: String,
+    shape: ShapeSpec,
+    placement: PlacementSpec,
+    #[serde(default)]
+    velocity: [f64; 3],
+    #[serde(default)]
+    angular_velocity: [f64; 3],
+    /// "identity" (default) or "random".
+    #[serde(default)]
+    orientation: Option<String>,
+    /// Rotation vector (axis times angle, radians) applied to the shape.
+    #[serde(default)]
+    rotation: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObstacleSpec {
+    material: String,
+    shape: ShapeSpec,
+    #[serde(default)]
+    position: [f64; 3],
+    /// Rotation vector (axis times angle, radians).
+    #[serde(default)]
+    rotation: Option<[f64; 3]>,
+}
+
+/// Which effects a scene declared, with their parameters.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Effects {
+    pub gravity: Option<DVec3>,
+    pub contact: bool,
+    pub friction: bool,
+    pub damping: Option<(f64, f64)>,
+    pub rotation: bool,
+}
+
+impl Effects {
+    pub fn names(&self) -> Vec<&'static str> {
+        let mut v = Vec::new();
+        if self.gravity.is_some() {
+            v.push("gravity");
+        }
+        if self.contact {
+            v.push("contact");
+        }
+        if self.friction {
+            v.push("friction");
+        }
+        if self.damping.is_some() {
+            v.push("damping");
+        }
+        if self.rotation {
+            v.push("rotation");
+        }
+        v
+    }
+}
+
+/// A parsed scene: the initial world and how to run it.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub world: World,
+    pub effects: Effects,
+    pub dt: f64,
+    pub end_time: f64,
+    pub output_every: u64,
+    /// The largest stable step for this scene's stiffest contact and lightest particle.
+    pub stable_dt: Option<f64>,
+    pub kernel: Options,
+    /// Set when the step exceeds the stable one and the scene allowed it.
+    pub warnings: Vec<String>,
+}
+
+struct Ctx<'a> {
+    file: String,
+    text: &'a str,
+    dir: PathBuf,
+}
+
+impl Ctx<'_> {
+    fn line_of(&self, offset: usize) -> usize {
+        self.text[..offset.min(self.text.len())]
+            .matches('\n')
+            .count()
+            + 1
+    }
+    fn err<T>(
+        &self,
+        span: std::ops::Range<usize>,
+        cause: impl Into<String>,
+    ) -> Result<T, SceneError> {
+        Err(SceneError {
+            file: self.file.clone(),
+            line: self.line_of(span.start),
+            cause: cause.into(),
+        })
+    }
+}
+
+impl Scene {
+    /// Reads and builds a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: path.display().to_string(),
+            line: 0,
+            cause: e.to_string(),
+        })?;
+        Scene::parse(
+            &text,
+            &path.display().to_string(),
+            path.parent().unwrap_or(Path::new(".")),
+        )
+    }
+
+    /// Builds a scene from TOML text; `file` names it in errors and `dir`
+    /// resolves relative mesh paths.
+    pub fn parse(text: &str, file: &str, dir: &Path) -> Result<Scene, SceneError> {
+        let ctx = Ctx {
+            file: file.to_string(),
+            text,
+            dir: dir.to_path_buf(),
+        };
+        let spec: SceneFile = toml::from_str(text).map_err(|e| SceneError {
+            file: file.to_string(),
+            line: e.span().map_or(0, |s| ctx.line_of(s.start)),
+            cause: e.message().to_string(),
+        })?;
+        build(&ctx, spec)
+    }
+}
+
+fn positive(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    what: &str,
+    x: f64,
+) -> Result<f64, SceneError> {
+    if x.is_finite() && x > 0.0 {
+        Ok(x)
+    } else {
+        ctx.err(
+            span,
+            format!("{what} must be a positive finite number, got {x}"),
+        )
+    }
+}
+
+fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
+    let sim_span = spec.simulation.span();
+    let sim = spec.simulation.into_inner();
+    let dt = positive(ctx, sim_span.clone(), "simulation.dt", sim.dt)?;
+    let end_time = positive(ctx, sim_span.clone(), "simulation.end_time", sim.end_time)?;
+    if sim.output_every == 0 {
+        return ctx.err(sim_span, "simulation.output_every must be at least 1");
+    }
+    let eff_span = spec.effects.span();
+    let e = spec.effects.into_inner();
+    if e.friction.is_some() && e.contact.is_none() {
+        return ctx.err(eff_span, "the friction effect needs the contact effect");
+    }
+    let effects = Effects {
+        gravity: match e.gravity {
+            Some(g) => {
+                let g = DVec3::from_array(g.g);
+                if !g.is_finite() {
+                    return ctx.err(eff_span, "gravity.g must be finite");
+                }
+                Some(g)
+            }
+            None => None,
+        },
+        contact: e.contact.is_some(),
+        friction: e.friction.is_some(),
+        damping: match e.damping {
+            Some(d)
+                if d.linear >= 0.0
+                    && d.angular >= 0.0
+                    && d.linear.is_finite()
+                    && d.angular.is_finite() =>
+            {
+                Some((d.linear, d.angular))
+            }
+            Some(_) => return ctx.err(eff_span, "damping rates must be finite and non-negative"),
+            None => None,
+        },
+        rotation: e.rotation.is_some(),
+    };
+
+    // Materials: parameters only for declared effects, and all those effects need.
+    let mut materials = Vec::new();
+    for m in &spec.materials {
+        let span = m.span();
+        let m = m.get_ref();
+        let name = &m.name;
+        if materials.iter().any(|x: &Material| &x.name == name) {
+            return ctx.err(span, format!("material `{name}` is defined twice"));
+        }
+        positive(
+            ctx,
+            span.clone(),
+            &format!("material `{name}`: density"),
+            m.density,
+        )?;
+        let contact_params = [
+            ("stiffness", m.stiffness),
+            ("restitution", m.restitution),
+            ("halo", m.halo),
+        ];
+        for (p, v) in contact_params {
+            match (effects.contact, v) {
+                (false, Some(_)) => {
+                    return ctx.err(span, format!("material `{name}` sets `{p}`, but the scene does not declare the contact effect"))
+                }
+                (true, None) => return ctx.err(span, format!("material `{name}` needs `{p}` for the contact effect")),
+                (true, Some(x)) => {
+                    positive(ctx, span.clone(), &format!("material `{name}`: {p}"), x)?;
+                }
+                (false, None) => {}
+            }
+        }
+        if let Some(e) = m.restitution {
+            if e > 1.0 {
+                return ctx.err(
+                    span,
+                    format!("material `{name}`: restitution must be in (0, 1], got {e}"),
+                );
+            }
+        }
+        match (effects.friction, m.friction) {
+            (false, Some(_)) => {
+                return ctx.err(span, format!("material `{name}` sets `friction`, but the scene does not declare the friction effect"))
+            }
+            (true, None) => return ctx.err(span, format!("material `{name}` needs `friction` for the friction effect")),
+            (true, Some(mu)) if !(mu.is_finite() && mu >= 0.0) => {
+                return ctx.err(span, format!("material `{name}`: friction must be finite and non-negative"))
+            }
+            _ => {}
+        }
+        materials.push(Material {
+            name: name.clone(),
+            density: m.density,
+            stiffness: m.stiffness,
+            restitution: m.restitution,
+            halo: m.halo,
+            friction: m.friction,
+        });
+    }
+    let material_index = |span: std::ops::Range<usize>, name: &str| -> Result<usize, SceneError> {
+        materials
+            .iter()
+            .position(|m| m.name == name)
+            .map_or_else(|| ctx.err(span, format!("unknown material `{name}`")), Ok)
+    };
+
+    let mut world = World {
+        materials: materials.clone(),
+        ..World::default()
+    };
+    for p in &spec.particles {
+        let span = p.span();
+        let p = p.get_ref();
+        let mat = material_index(span.clone(), &p.material)?;
+        let mesh = make_shape(ctx, span.clone(), &p.shape)?;
+        let props = MassProperties::of(&mesh, materials[mat].density);
+        let local = mesh.translated(-props.centroid);
+        let shape = world.shapes.len();
+        world.shapes.push(local.clone());
+        let inv_inertia = props.inertia.inverse();
+        if !inv_inertia.is_finite() {
+            return ctx.err(span, "particle shape has a singular inertia tensor");
+        }
+        let radius = local
+            .vertices
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f64::max);
+        let positions = placements(ctx, span.clone(), &p.placement, radius)?;
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed);
+        for pos in positions {
+            let mut q = match p.orientation.as_deref() {
+                None | Some("identity") => DQuat::IDENTITY,
+                Some("random") => random_rotation(&mut rng),
+                Some(o) => {
+                    return ctx.err(
+                        span,
+                        format!("orientation must be `identity` or `random`, got `{o}`"),
+                    )
+                }
+            };
+            if let Some(r) = p.rotation {
+                q = crate::integrate::exp_map(DVec3::from_array(r)) * q;
+            }
+            let omega = DVec3::from_array(p.angular_velocity);
+            let inertia_world =
+                DMat3::from_quat(q) * props.inertia * DMat3::from_quat(q).transpose();
+            world.bodies.push(Body {
+                shape,
+                material: mat,
+                x: DVec3::from_array(pos),
+                q,
+                v: DVec3::from_array(p.velocity),
+                l: inertia_world * omega,
+                inv_mass: 1.0 / props.mass,
+                mass: props.mass,
+                inv_inertia_body: inv_inertia,
+                inertia_body: props.inertia,
+            });
+        }
+    }
+    for o in &spec.obstacles {
+        let span = o.span();
+        let o = o.get_ref();
+        let mat = material_index(span.clone(), &o.material)?;
+        let mesh = make_shape(ctx, span.clone(), &o.shape)?;
+        let q = o.rotation.map_or(DQuat::IDENTITY, |r| {
+            crate::integrate::exp_map(DVec3::from_array(r))
+        });
+        world.shapes.push(mesh);
+        world.bodies.push(Body {
+            shape: world.shapes.len() - 1,
+            material: mat,
+            x: DVec3::from_array(o.position),
+            q,
+            v: DVec3::ZERO,
+            l: DVec3::ZERO,
+            inv_mass: 0.0,
+            mass: f64::INFINITY,
+            inv_inertia_body: DMat3::ZERO,
+            inertia_body: DMat3::ZERO,
+        });
+    }
+    if world.dynamic_count() == 0 {
+        return ctx.err(0..0, "the scene has no particles");
+    }
+
+    let kernel = match spec.kernel {
+        None => Options::default(),
+        Some(k) => {
+            let span = k.span();
+            let k = k.into_inner();
+            let method: Method = k
+                .method
+                .parse()
+                .map_or_else(|e| ctx.err(span.clone(), e), Ok)?;
+            if !crate::distance::penalty::BATCH_SIZES.contains(&k.batch) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "kernel.batch must be one of 1, 2, 4, 8, 16, 32, 64, got {}",
+                        k.batch
+                    ),
+                );
+            }
+            Options {
+                method,
+                batch: k.batch,
+                penalty: PenaltyParams::default(),
+                fallback: if k.fallback_failed_pairs {
+                    Fallback::FailedPairs
+                } else {
+                    Fallback::WholeBatch
+                },
+                threading: Threading {
+                    schedule: if k.dynamic_schedule {
+                        Schedule::Dynamic
+                    } else {
+                        Schedule::Static
+                    },
+                    grain: 16,
+                },
+            }
+        }
+    };
+
+    // Stable step: ω = √(k/m*) for the stiffest pair of materials that can meet
+    // (springs in series) and the lightest reduced mass (half the lightest
+    // particle), h = (2/ω)(√(1 + ζ²) − ζ) with the largest damping ratio.
+    let mut warnings = Vec::new();
+    let stable_dt = if effects.contact {
+        let mut used_by_particles = vec![false; materials.len()];
+        let mut used = vec![false; materials.len()];
+        for b in &world.bodies {
+            used[b.material] = true;
+            used_by_particles[b.material] |= !b.is_static();
+        }
+        let mut k_max = 0.0f64;
+        for (_, mi) in materials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| used_by_particles[*i])
+        {
+            for (_, mj) in materials.iter().enumerate().filter(|(j, _)| used[*j]) {
+                let (ki, kj) = (mi.stiffness.unwrap_or(0.0), mj.stiffness.unwrap_or(0.0));
+                k_max = k_max.max(ki * kj / (ki + kj));
+            }
+        }
+        let zeta = materials
+            .iter()
+            .filter_map(|m| m.restitution)
+            .map(damping_ratio)
+            .fold(0.0, f64::max);
+        let m_min = world
+            .bodies
+            .iter()
+            .filter(|b| !b.is_static())
+            .map(|b| b.mass)
+            .fold(f64::INFINITY, f64::min);
+        let omega = (k_max / (0.5 * m_min)).sqrt();
+        Some(2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta))
+    } else {
+        None
+    };
+    if let Some(h) = stable_dt {
+        if dt > h {
+            let msg = format!("simulation.dt = {dt:e} s is above the stable step {h:e} s (stiffest contact pair, lightest particle)");
+            if sim.allow_unstable_dt {
+                warnings.push(msg);
+            } else {
+                return ctx.err(
+                    sim_span,
+                    format!("{msg}; lower dt or set allow_unstable_dt = true"),
+                );
+            }
+        }
+    }
+    Ok(Scene {
+        world,
+        effects,
+        dt,
+        end_time,
+        output_every: sim.output_every,
+        stable_dt,
+        kernel,
+        warnings,
+    })
+}
+
+fn make_shape(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    s: &ShapeSpec,
+) -> Result<TriMesh, SceneError> {
+    match s {
+        ShapeSpec::Hull {
+            triangles,
+            radius,
+            seed,
+        } => {
+            let r = positive(ctx, span.clone(), "shape.radius", *radius)?;
+            if *triangles < 4 || triangles % 2 != 0 {
+                return ctx.err(
+                    span,
+                    format!("a hull needs an even number of triangles >= 4, got {triangles}"),
+                );
+            }
+            Ok(sphere_hull(*triangles, r, *seed))
+        }
+        ShapeSpec::Box { size } => {
+            for (k, &x) in size.iter().enumerate() {
+                positive(ctx, span.clone(), &format!("shape.size[{k}]"), x)?;
+            }
+            Ok(box_mesh(DVec3::from_array(*size)))
+        }
+        ShapeSpec::Tetrahedron { radius } => {
+            Ok(tetrahedron(positive(ctx, span, "shape.radius", *radius)?))
+        }
+        ShapeSpec::Mesh { file, scale } => {
+            let path = if file.is_absolute() {
+                file.clone()
+            } else {
+                ctx.dir.join(file)
+            };
+            let s = positive(ctx, span.clone(), "shape.scale", *scale)?;
+            load_mesh(&path)
+                .map(|m| m.scaled(s))
+                .or_else(|e| ctx.err(span, e.to_string()))
+        }
+    }
+}
+
+fn placements(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    p: &PlacementSpec,
+    radius: f64,
+) -> Result<Vec<[f64; 3]>, SceneError> {
+    match p {
+        PlacementSpec::Single { position } => Ok(vec![*position]),
+        PlacementSpec::Lattice {
+            count,
+            spacing,
+            origin,
+        } => {
+            let s = positive(ctx, span.clone(), "placement.spacing", *spacing)?;
+            if s < 2.0 * radius {
+                return ctx.err(
+                    span,
+                    format!(
+                        "placement.spacing {s} is below the particle diameter {}",
+                        2.0 * radius
+                    ),
+                );
+            }
+            let mut v = Vec::new();
+            for k in 0..count[2] {
+                for j in 0..count[1] {
+                    for i in 0..count[0] {
+                        v.push([
+                            origin[0] + i as f64 * s,
+                            origin[1] + j as f64 * s,
+                            origin[2] + k as f64 * s,
+                        ]);
+                    }
+                }
+            }
+            Ok(v)
+        }
+        PlacementSpec::Random {
+            count,
+            lo,
+            hi,
+            seed,
+        } => {
+            // Random sequential packing: reject positions closer than a diameter.
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(*seed);
+            let mut v: Vec<[f64; 3]> = Vec::with_capacity(*count);
+            let mut tries = 0usize;
+            while v.len() < *count {
+                tries += 1;
+                if tries > 1000 * count.max(&1) {
+                    return ctx.err(
+                        span,
+                        format!(
+                            "could place only {} of {count} particles without overlap in the box",
+                            v.len()
+                        ),
+                    );
+                }
+                let p = [0, 1, 2].map(|k| {
+                    lo[k] + radius + (hi[k] - lo[k] - 2.0 * radius).max(0.0) * rng.random::<f64>()
+                });
+                let ok = v.iter().all(|o| {
+                    (0..3).map(|k| (o[k] - p[k]).powi(2)).sum::<f64>() >= (2.0 * radius).powi(2)
+                });
+                if ok {
+                    v.push(p);
+                }
+            }
+            Ok(v)
+        }
+    }
+}
+
+fn random_rotation(rng: &mut Xoshiro256PlusPlus) -> DQuat {
+    // Shoemake's uniform random unit quaternion.
+    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
+    let tau = 2.0 * std::f64::consts::PI;
+    DQuat::from_xyzw(
+        (1.0 - u1).sqrt() * (tau * u2).sin(),
+        (1.0 - u1).sqrt() * (tau * u2).cos(),
+        u1.sqrt() * (tau * u3).sin(),
+        u1.sqrt() * (tau * u3).cos(),
+    )
+    .normalize()
+}

@@ -1,0 +1,125 @@
+//! The step pipeline: scene -> world -> effects -> integration.
+
+use crate::effects::{
+    ContactEffect, DampingEffect, Effect, Forces, FrictionEffect, GravityEffect, StepContext,
+    StepStats,
+};
+use crate::integrate::{drift, half_kick};
+use crate::scene::Scene;
+use crate::world::World;
+
+/// A running simulation.
+pub struct Simulation {
+    pub world: World,
+    pub dt: f64,
+    rotation: bool,
+    effects: Vec<Box<dyn Effect>>,
+    forces: Forces,
+    ctx: StepContext,
+    /// Counters summed over all steps so far.
+    pub totals: StepStats,
+}
+
+impl Simulation {
+    /// Builds the pipeline from exactly the effects the scene declares.
+    pub fn new(scene: &Scene) -> Simulation {
+        let world = scene.world.clone();
+        let mut effects: Vec<Box<dyn Effect>> = Vec::new();
+        if let Some(g) = scene.effects.gravity {
+            effects.push(Box::new(GravityEffect { g }));
+        }
+        if scene.effects.contact {
+            effects.push(Box::new(ContactEffect::new(&world, scene.kernel)));
+        }
+        if scene.effects.friction {
+            effects.push(Box::new(FrictionEffect::new(&world)));
+        }
+        if let Some((linear, angular)) = scene.effects.damping {
+            effects.push(Box::new(DampingEffect { linear, angular }));
+        }
+        let mut sim = Simulation {
+            world,
+            dt: scene.dt,
+            rotation: scene.effects.rotation,
+            effects,
+            forces: Forces::default(),
+            ctx: StepContext {
+                dt: scene.dt,
+                ..StepContext::default()
+            },
+            totals: StepStats::default(),
+        };
+        sim.evaluate_forces();
+        sim
+    }
+
+    /// Names of the effects in the pipeline, in order (rotation is an integration switch).
+    pub fn effect_names(&self) -> Vec<&'static str> {
+        let mut v: Vec<&'static str> = self.effects.iter().map(|e| e.name()).collect();
+        if self.rotation {
+            v.push("rotation");
+        }
+        v
+    }
+
+    fn evaluate_forces(&mut self) {
+        self.forces.reset(self.world.bodies.len());
+        self.ctx.stats = StepStats::default();
+        for e in &mut self.effects {
+            e.apply(&self.world, &mut self.ctx, &mut self.forces);
+        }
+    }
+
+    /// One velocity-Verlet step.
+    pub fn step(&mut self) {
+        let h = self.dt;
+        for (i, b) in self.world.bodies.iter_mut().enumerate() {
+            half_kick(
+                b,
+                self.forces.force[i],
+                self.forces.torque[i],
+                h,
+                self.rotation,
+            );
+            drift(b, h, self.rotation);
+        }
+        self.evaluate_forces();
+        for (i, b) in self.world.bodies.iter_mut().enumerate() {
+            half_kick(
+                b,
+                self.forces.force[i],
+                self.forces.torque[i],
+                h,
+                self.rotation,
+            );
+        }
+        self.world.time += h;
+        self.world.step += 1;
+        self.totals += self.ctx.stats;
+    }
+
+    /// Kinetic plus the potential energy the effects store.
+    pub fn total_energy(&self) -> f64 {
+        self.world.kinetic_energy()
+            + self
+                .effects
+                .iter()
+                .map(|e| e.potential_energy(&self.world, &self.ctx))
+                .sum::<f64>()
+    }
+
+    /// Contacts of the last force evaluation, per body.
+    pub fn contact_counts(&self) -> Vec<u32> {
+        let mut c = vec![0u32; self.world.bodies.len()];
+        for k in &self.ctx.contacts {
+            c[k.a] += 1;
+            c[k.b] += 1;
+        }
+        c
+    }
+
+    /// Statistics of the last step.
+    pub fn last_stats(&self) -> StepStats {
+        self.ctx.stats
+    }
+}

@@ -1,0 +1,165 @@
+//! Bad input is refused with the file, line and cause; meshes must be closed,
+//! consistently oriented and non-degenerate.
+use dem::mesh::{box_mesh, MeshError, TriMesh};
+use dem::scene::Scene;
+use glam::DVec3;
+use std::path::Path;
+
+const BASE: &str = r#"
+[simulation]
+dt = 1e-5
+end_time = 0.1
+
+[effects]
+gravity = { g = [0.0, 0.0, -9.81] }
+contact = {}
+
+[[materials]]
+name = "m"
+density = 1000.0
+stiffness = 1e4
+restitution = 0.5
+halo = 1e-4
+
+[[particles]]
+material = "m"
+shape = { kind = "tetrahedron", radius = 0.01 }
+placement = { kind = "single", position = [0.0, 0.0, 0.0] }
+"#;
+
+fn parse(text: &str) -> Result<Scene, dem::scene::SceneError> {
+    Scene::parse(text, "scene.toml", Path::new("."))
+}
+
+#[test]
+fn the_base_scene_parses() {
+    let s = parse(BASE).unwrap();
+    assert_eq!(s.effects.names(), vec!["gravity", "contact"]);
+    assert!(s.stable_dt.unwrap() > s.dt);
+}
+
+#[test]
+fn unknown_effect_is_an_error_with_its_line() {
+    let text = BASE.replace("contact = {}", "contact = {}\nmagnetism = {}");
+    let e = parse(&text).unwrap_err();
+    assert_eq!(e.file, "scene.toml");
+    assert_eq!(e.line, 9, "{e}");
+    assert!(e.cause.contains("magnetism"), "{e}");
+}
+
+#[test]
+fn parameters_of_undeclared_effects_are_errors() {
+    let e = parse(&BASE.replace("halo = 1e-4", "halo = 1e-4\nfriction = 0.3")).unwrap_err();
+    assert!(e.cause.contains("friction effect"), "{e}");
+    // The material's table starts on line 10.
+    assert_eq!(e.line, 10, "{e}");
+    let no_contact = BASE.replace("contact = {}\n", "");
+    let e = parse(&no_contact).unwrap_err();
+    assert!(
+        e.cause.contains("does not declare the contact effect"),
+        "{e}"
+    );
+}
+
+#[test]
+fn malformed_toml_names_the_line() {
+    let text = BASE.replace("end_time = 0.1", "end_time = = 0.1");
+    let e = parse(&text).unwrap_err();
+    assert_eq!(e.line, 4, "{e}");
+}
+
+#[test]
+fn nan_and_negative_values_are_refused() {
+    let e = parse(&BASE.replace("density = 1000.0", "density = nan")).unwrap_err();
+    assert!(e.cause.contains("density"), "{e}");
+    let e = parse(&BASE.replace("dt = 1e-5", "dt = -1e-5")).unwrap_err();
+    assert!(e.cause.contains("dt"), "{e}");
+}
+
+#[test]
+fn a_step_above_the_stable_one_is_refused_or_warned() {
+    let text = BASE.replace("dt = 1e-5", "dt = 1e-2");
+    let e = parse(&text).unwrap_err();
+    assert!(e.cause.contains("stable step"), "{e}");
+    assert_eq!(e.line, 2);
+    let allowed = text.replace("end_time = 0.1", "end_time = 0.1\nallow_unstable_dt = true");
+    let s = parse(&allowed).unwrap();
+    assert_eq!(s.warnings.len(), 1);
+}
+
+#[test]
+fn unknown_material_is_reported_at_the_particle() {
+    let e = parse(&BASE.replace("material = \"m\"", "material = \"wood\"")).unwrap_err();
+    assert!(e.cause.contains("unknown material `wood`"), "{e}");
+    // The particle's table starts on line 17.
+    assert_eq!(e.line, 17, "{e}");
+}
+
+#[test]
+fn missing_scene_file_names_the_file() {
+    let e = Scene::load(Path::new("/nonexistent/scene.toml")).unwrap_err();
+    assert!(e.to_string().starts_with("/nonexistent/scene.toml"), "{e}");
+}
+
+#[test]
+fn open_inconsistent_and_degenerate_meshes_are_refused() {
+    let b = box_mesh(DVec3::ONE);
+    let mut open = b.triangles.clone();
+    open.pop();
+    assert!(matches!(
+        TriMesh::new(b.vertices.clone(), open),
+        Err(MeshError::Open(..))
+    ));
+    let mut flipped = b.triangles.clone();
+    flipped[3].swap(1, 2);
+    assert!(matches!(
+        TriMesh::new(b.vertices.clone(), flipped),
+        Err(MeshError::Inconsistent(..))
+    ));
+    let mut degenerate = b.vertices.clone();
+    degenerate[7] = (degenerate[5] + degenerate[6]) * 0.5;
+    let e = TriMesh::new(degenerate, b.triangles.clone()).unwrap_err();
+    assert!(
+        matches!(e, MeshError::Degenerate(_) | MeshError::Open(..)),
+        "{e}"
+    );
+    let mut nan = b.vertices.clone();
+    nan[0].x = f64::NAN;
+    assert_eq!(
+        TriMesh::new(nan, b.triangles.clone()),
+        Err(MeshError::NonFinite(0))
+    );
+    // Inward-facing but consistent: turned outward.
+    let inward: Vec<[u32; 3]> = b.triangles.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let m = TriMesh::new(b.vertices.clone(), inward).unwrap();
+    assert!(m.signed_volume() > 0.0);
+}
+
+#[test]
+fn obj_and_stl_meshes_load_and_bad_ones_name_the_file() {
+    let dir = std::env::temp_dir().join(format!("tridem-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let b = box_mesh(DVec3::new(1.0, 2.0, 3.0));
+    let mut obj = String::new();
+    for v in &b.vertices {
+        obj.push_str(&format!("v {} {} {}\n", v.x, v.y, v.z));
+    }
+    for t in &b.triangles {
+        obj.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    }
+    let p = dir.join("box.obj");
+    std::fs::write(&p, &obj).unwrap();
+    let m = dem::mesh::load_mesh(&p).unwrap();
+    assert!((m.signed_volume() - 6.0).abs() < 1e-12);
+    // An open OBJ (last face missing) is refused, naming the file.
+    let open: String = obj
+        .lines()
+        .take(obj.lines().count() - 1)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let p2 = dir.join("open.obj");
+    std::fs::write(&p2, open).unwrap();
+    let e = dem::mesh::load_mesh(&p2).unwrap_err().to_string();
+    assert!(e.contains("open.obj") && e.contains("open"), "{e}");
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -1,0 +1,167 @@
+//! Simulation output: one HDF5 file per run with a group per output step, the
+//! meshes once, and an XDMF sidecar so that ParaView opens it directly.
+//!
+//! Layout of `DIR/run.h5`:
+//! - `/shapes/<s>/vertices` (V×3, body frame) and `/shapes/<s>/triangles` (T×3)
+//! - `/steps/<k>/{positions, velocities, angular_momenta} (N×3), orientations (N×4, xyzw),
+//!   contacts (N), time (attribute)`
+//! - `/steps/<k>/surface/{points (3T×3), triangles (T×3), body (T)}`: the world-space
+//!   surface of all bodies, which the XDMF file `DIR/run.xmf` shows as a time series.
+//!
+//! Each step is written and flushed as it is produced, so a run stopped early
+//! keeps everything written before.
+
+use crate::error::{CliError, CliResult};
+use dem::simulation::Simulation;
+use ndarray::{Array1, Array2};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+pub struct Output {
+    file: hdf5::File,
+    dir: PathBuf,
+    steps: Vec<(usize, f64, usize, usize)>,
+}
+
+fn h5err(e: hdf5::Error) -> CliError {
+    CliError::runtime(format!("HDF5: {e}"))
+}
+
+impl Output {
+    pub fn create(dir: &Path, sim: &Simulation) -> CliResult<Output> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
+        let path = dir.join("run.h5");
+        let file = hdf5::File::create(&path)
+            .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))?;
+        let shapes = file.create_group("shapes").map_err(h5err)?;
+        for (i, m) in sim.world.shapes.iter().enumerate() {
+            let g = shapes.create_group(&i.to_string()).map_err(h5err)?;
+            let v = Array2::from_shape_fn((m.vertices.len(), 3), |(r, c)| m.vertices[r][c]);
+            let t = Array2::from_shape_fn((m.triangles.len(), 3), |(r, c)| m.triangles[r][c]);
+            g.new_dataset_builder()
+                .with_data(&v)
+                .create("vertices")
+                .map_err(h5err)?;
+            g.new_dataset_builder()
+                .with_data(&t)
+                .create("triangles")
+                .map_err(h5err)?;
+        }
+        file.create_group("steps").map_err(h5err)?;
+        Ok(Output {
+            file,
+            dir: dir.to_path_buf(),
+            steps: Vec::new(),
+        })
+    }
+
+    /// Writes the current state as the next output step, then rewrites the XDMF index.
+    pub fn write_step(&mut self, sim: &Simulation) -> CliResult {
+        let k = self.steps.len();
+        let w = &sim.world;
+        let n = w.bodies.len();
+        let g = self
+            .file
+            .group("steps")
+            .and_then(|s| s.create_group(&k.to_string()))
+            .map_err(h5err)?;
+        let vec3 =
+            |f: &dyn Fn(usize) -> glam::DVec3| Array2::from_shape_fn((n, 3), |(r, c)| f(r)[c]);
+        g.new_dataset_builder()
+            .with_data(&vec3(&|i| w.bodies[i].x))
+            .create("positions")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&vec3(&|i| w.bodies[i].v))
+            .create("velocities")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&vec3(&|i| w.bodies[i].l))
+            .create("angular_momenta")
+            .map_err(h5err)?;
+        let q = Array2::from_shape_fn((n, 4), |(r, c)| w.bodies[r].q.to_array()[c]);
+        g.new_dataset_builder()
+            .with_data(&q)
+            .create("orientations")
+            .map_err(h5err)?;
+        let contacts = Array1::from(sim.contact_counts());
+        g.new_dataset_builder()
+            .with_data(&contacts)
+            .create("contacts")
+            .map_err(h5err)?;
+        g.new_attr::<f64>()
+            .create("time")
+            .and_then(|a| a.write_scalar(&w.time))
+            .map_err(h5err)?;
+
+        // World-space surface for visualisation.
+        let mut pts = Vec::new();
+        let mut body = Vec::new();
+        for (bi, b) in w.bodies.iter().enumerate() {
+            let m = &w.shapes[b.shape];
+            for t in &m.triangles {
+                for &v in t {
+                    pts.push(b.to_world(m.vertices[v as usize]));
+                }
+                body.push(bi as u32);
+            }
+        }
+        let nt = body.len();
+        let s = g.create_group("surface").map_err(h5err)?;
+        let p = Array2::from_shape_fn((3 * nt, 3), |(r, c)| pts[r][c]);
+        let t = Array2::from_shape_fn((nt, 3), |(r, c)| (3 * r + c) as u32);
+        s.new_dataset_builder()
+            .with_data(&p)
+            .create("points")
+            .map_err(h5err)?;
+        s.new_dataset_builder()
+            .with_data(&t)
+            .create("triangles")
+            .map_err(h5err)?;
+        s.new_dataset_builder()
+            .with_data(&Array1::from(body))
+            .create("body")
+            .map_err(h5err)?;
+        self.file.flush().map_err(h5err)?;
+        self.steps.push((k, w.time, nt, n));
+        self.write_xdmf()
+    }
+
+    fn write_xdmf(&self) -> CliResult {
+        let mut x = String::new();
+        let _ = writeln!(x, r#"<?xml version="1.0" ?>"#);
+        let _ = writeln!(x, r#"<Xdmf Version="3.0"><Domain>"#);
+        let _ = writeln!(
+            x,
+            r#"<Grid Name="surface" GridType="Collection" CollectionType="Temporal">"#
+        );
+        for &(k, t, nt, _) in &self.steps {
+            let _ = writeln!(
+                x,
+                r#"<Grid Name="step{k}" GridType="Uniform"><Time Value="{t:e}"/>"#
+            );
+            let _ = writeln!(
+                x,
+                r#"<Topology TopologyType="Triangle" NumberOfElements="{nt}"><DataItem Dimensions="{nt} 3" NumberType="UInt" Precision="4" Format="HDF">run.h5:/steps/{k}/surface/triangles</DataItem></Topology>"#
+            );
+            let _ = writeln!(
+                x,
+                r#"<Geometry GeometryType="XYZ"><DataItem Dimensions="{} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/surface/points</DataItem></Geometry>"#,
+                3 * nt
+            );
+            let _ = writeln!(
+                x,
+                r#"<Attribute Name="body" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{nt}" NumberType="UInt" Precision="4" Format="HDF">run.h5:/steps/{k}/surface/body</DataItem></Attribute>"#
+            );
+            let _ = writeln!(x, "</Grid>");
+        }
+        let _ = writeln!(x, "</Grid></Domain></Xdmf>");
+        let path = self.dir.join("run.xmf");
+        // Write beside and rename, so the index on disk is never half written.
+        let tmp = self.dir.join("run.xmf.tmp");
+        std::fs::write(&tmp, x)
+            .and_then(|_| std::fs::rename(&tmp, &path))
+            .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))
+    }
+}

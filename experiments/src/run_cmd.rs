@@ -1,0 +1,142 @@
+//! `tridem run SCENE`: a DEM run on one node, with HDF5 output and a summary.
+
+use crate::cli::RunArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::Output;
+use dem::scene::Scene;
+use dem::simulation::Simulation;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::time::Instant;
+
+pub fn run(args: &RunArgs) -> CliResult {
+    let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+    for w in &scene.warnings {
+        eprintln!("tridem: warning: {w}");
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.unwrap_or(0))
+        .build_global()
+        .map_err(|e| CliError::runtime(e.to_string()))?;
+    let steps = args
+        .steps
+        .unwrap_or_else(|| (scene.end_time / scene.dt).round() as u64);
+    let mut sim = Simulation::new(&scene);
+    let mut out = match &args.output {
+        Some(dir) => Some(Output::create(dir, &sim)?),
+        None => None,
+    };
+    eprintln!(
+        "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps, {} threads",
+        args.scene.display(),
+        sim.world.dynamic_count(),
+        sim.world.particle_triangles(),
+        sim.world.bodies.len() - sim.world.dynamic_count(),
+        sim.effect_names().join(", "),
+        scene.dt,
+        scene.stable_dt.map_or(String::new(), |h| format!(" (stable: {h:.3e} s)")),
+        rayon::current_num_threads(),
+    );
+    if let Some(o) = &mut out {
+        o.write_step(&sim)?;
+    }
+    let bar = ProgressBar::new(steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed} eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    if args.quiet {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    let start = Instant::now();
+    for s in 1..=steps {
+        sim.step();
+        if sim
+            .world
+            .bodies
+            .iter()
+            .any(|b| !b.x.is_finite() || !b.v.is_finite())
+        {
+            bar.abandon();
+            return Err(CliError::runtime(format!(
+                "the simulation became non-finite at step {s} (t = {:e} s): the time step is too large for this scene",
+                sim.world.time
+            )));
+        }
+        if s % scene.output_every == 0 {
+            if let Some(o) = &mut out {
+                o.write_step(&sim)?;
+            }
+        }
+        if s % 64 == 0 || s == steps {
+            bar.set_position(s);
+        }
+    }
+    bar.finish_and_clear();
+    let secs = start.elapsed().as_secs_f64();
+    if sim.totals.detection.deep_contacts > 0 {
+        eprintln!(
+            "tridem: warning: {} contacts went deeper than the particles' halos (triangles crossed); \
+             raise the stiffness or the halo, or lower the impact speed",
+            sim.totals.detection.deep_contacts
+        );
+    }
+    let n = sim.world.dynamic_count() as f64;
+    let t = &sim.totals;
+    let dynamic: Vec<_> = sim.world.bodies.iter().filter(|b| !b.is_static()).collect();
+    let com = dynamic.iter().map(|b| b.x * b.mass).sum::<glam::DVec3>()
+        / dynamic.iter().map(|b| b.mass).sum::<f64>();
+    let lowest = dynamic.iter().map(|b| b.x.z).fold(f64::INFINITY, f64::min);
+    let highest = dynamic
+        .iter()
+        .map(|b| b.x.z)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let summary = serde_json::json!({
+        "centre_of_mass": [com.x, com.y, com.z],
+        "lowest_z": lowest,
+        "highest_z": highest,
+        "scene": args.scene.display().to_string(),
+        "steps": steps,
+        "particles": sim.world.dynamic_count(),
+        "threads": rayon::current_num_threads(),
+        "seconds": secs,
+        "steps_per_second": steps as f64 / secs,
+        "seconds_per_particle_step": secs / (steps as f64 * n),
+        "body_pairs_checked": t.detection.body_pairs,
+        "triangle_pairs_checked": t.detection.triangle_pairs,
+        "fallback_rate": if t.detection.triangle_pairs > 0 { t.detection.fallback_pairs as f64 / t.detection.triangle_pairs as f64 } else { 0.0 },
+        "contacts": t.detection.contacts,
+        "deep_contacts": t.detection.deep_contacts,
+        "tangential_evaluations": t.tangential_evaluations,
+        "kinetic_energy": sim.world.kinetic_energy(),
+    });
+    if args.json {
+        println!("{summary}");
+    } else {
+        println!(
+            "steps                  {steps} in {secs:.2} s ({:.0} steps/s)",
+            steps as f64 / secs
+        );
+        println!("cost per particle-step {:.3e} s", secs / (steps as f64 * n));
+        println!("body pairs checked     {}", t.detection.body_pairs);
+        println!("triangle pairs checked {}", t.detection.triangle_pairs);
+        println!(
+            "kernel fallback rate   {:.1}%",
+            100.0 * summary["fallback_rate"].as_f64().unwrap_or(0.0)
+        );
+        println!("contacts (sum)         {}", t.detection.contacts);
+        println!("tangential evaluations {}", t.tangential_evaluations);
+        println!("deep contacts          {}", t.detection.deep_contacts);
+        println!(
+            "particles' z           {lowest:.4} .. {highest:.4} (centre of mass {:.4})",
+            com.z
+        );
+        if let Some(dir) = &args.output {
+            println!(
+                "output                 {}/run.h5 (open {}/run.xmf in ParaView)",
+                dir.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}

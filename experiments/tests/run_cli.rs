@@ -1,0 +1,94 @@
+//! `tridem run` as users call it: output that ParaView can open, a summary,
+//! and clear errors for bad scenes.
+use std::process::Command;
+
+fn tridem(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn scene(name: &str) -> String {
+    format!("{}/../scenes/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn run_writes_hdf5_and_xdmf_for_every_output_step() {
+    let dir = std::env::temp_dir().join(format!("tridem-run-{}", std::process::id()));
+    let (code, out, err) = tridem(&[
+        "run",
+        &scene("drop.toml"),
+        "--steps",
+        "400",
+        "--output",
+        dir.to_str().unwrap(),
+        "--json",
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    assert_eq!(summary["steps"], 400);
+    assert_eq!(summary["particles"], 18);
+    assert!(summary["seconds_per_particle_step"].as_f64().unwrap() > 0.0);
+    assert_eq!(summary["deep_contacts"], 0);
+
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let steps = f.group("steps").unwrap();
+    // output_every = 200: steps 0, 200, 400.
+    assert_eq!(steps.member_names().unwrap().len(), 3);
+    let last = steps.group("2").unwrap();
+    let pos: ndarray::Array2<f64> = last.dataset("positions").unwrap().read_2d().unwrap();
+    assert_eq!(pos.shape(), &[19, 3]);
+    let t: f64 = last.attr("time").unwrap().read_scalar().unwrap();
+    assert!((t - 400.0 * 5e-5).abs() < 1e-12);
+    let q: ndarray::Array2<f64> = last.dataset("orientations").unwrap().read_2d().unwrap();
+    for row in q.rows() {
+        let n: f64 = row.iter().map(|x| x * x).sum();
+        assert!((n - 1.0).abs() < 1e-12);
+    }
+    let pts: ndarray::Array2<f64> = last
+        .group("surface")
+        .unwrap()
+        .dataset("points")
+        .unwrap()
+        .read_2d()
+        .unwrap();
+    assert_eq!(pts.shape(), &[3 * (18 * 20 + 12), 3]);
+    let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
+    assert_eq!(xmf.matches("<Grid Name=\"step").count(), 3);
+    assert!(xmf.contains("run.h5:/steps/2/surface/points"));
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn a_bad_scene_is_an_error_with_file_and_line() {
+    let dir = std::env::temp_dir().join(format!("tridem-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(scene("drop.toml"))
+        .unwrap()
+        .replace("rotation = {}", "rotation = {}\nlevitation = {}");
+    let line = text.lines().position(|l| l.starts_with("levitation")).unwrap() + 1;
+    let p = dir.join("bad.toml");
+    std::fs::write(&p, &text).unwrap();
+    let (code, _, err) = tridem(&["run", p.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains(&format!("bad.toml:{line}:")) && err.contains("levitation"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn shipped_scenes_parse() {
+    for s in ["two-particles.toml", "drop.toml", "hopper.toml"] {
+        dem::scene::Scene::load(std::path::Path::new(&scene(s))).unwrap_or_else(|e| panic!("{e}"));
+    }
+}
