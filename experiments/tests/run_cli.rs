@@ -73,7 +73,11 @@ fn a_bad_scene_is_an_error_with_file_and_line() {
     let text = std::fs::read_to_string(scene("drop.toml"))
         .unwrap()
         .replace("rotation = {}", "rotation = {}\nlevitation = {}");
-    let line = text.lines().position(|l| l.starts_with("levitation")).unwrap() + 1;
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("levitation"))
+        .unwrap()
+        + 1;
     let p = dir.join("bad.toml");
     std::fs::write(&p, &text).unwrap();
     let (code, _, err) = tridem(&["run", p.to_str().unwrap()]);
