@@ -9,7 +9,7 @@ use partition::comm::all_gather_v;
 use partition::ghosts::exchange_ghosts;
 use partition::migrate::migrate;
 use partition::workload::{Spec, Workload};
-use partition::{metrics, Aabb, Backend};
+use partition::{metrics, Aabb, Backend, Partitioner};
 use std::time::Instant;
 
 fn main() {
@@ -98,6 +98,33 @@ fn main() {
     }
     out.kv("ghosts_missing", missing);
     out.kv("ghosts_received", ghosts.received.len());
+
+    // Zoltan's RCB boxes, clamped to the domain, hold this rank's points.
+    if backend == Backend::ZoltanRcb {
+        let mut zp =
+            partition::zoltan::ZoltanPartitioner::new(&world, partition::zoltan::Method::Rcb)
+                .unwrap();
+        let owners = zp.partition(&world, &local.items).unwrap();
+        let stay = owners.iter().filter(|&&o| o == me).count();
+        let mut domain = Aabb::EMPTY;
+        for it in &everything {
+            domain.grow(it.point);
+        }
+        let b = zp.zoltan().rcb_box(me, &domain).unwrap();
+        let outside = local
+            .items
+            .iter()
+            .zip(&owners)
+            .filter(|(i, &o)| o == me && !b.contains(i.point))
+            .count();
+        out.kv("rcb_box_outside", outside);
+        out.kv(
+            "rcb_box_inside_domain",
+            b.lo.iter().zip(&domain.lo).all(|(x, d)| x >= d)
+                && b.hi.iter().zip(&domain.hi).all(|(x, d)| x <= d),
+        );
+        out.kv("rcb_stay", stay);
+    }
 
     if shift > 0.0 {
         spec.advance(&mut local, shift);

@@ -71,6 +71,17 @@ fn every_backend_on_1_to_4_ranks() {
                     "{ctx}: ghost completeness"
                 );
             }
+            if backend == "zoltan-rcb" {
+                for rep in &r.reports {
+                    assert_eq!(rep.parse::<u64>("rcb_box_outside"), 0, "{ctx}: RCB box");
+                    assert_eq!(
+                        rep.value("rcb_box_inside_domain"),
+                        Some("true"),
+                        "{ctx}: RCB box clamped"
+                    );
+                    assert!(rep.parse::<u64>("rcb_stay") > 0, "{ctx}");
+                }
+            }
             let imb: f64 = r.reports[0].parse("imbalance");
             assert!(imb <= 1.05, "{ctx}: imbalance {imb}");
             if ranks == 1 {

@@ -27,6 +27,35 @@ impl Method {
     }
 }
 
+/// Typed Zoltan parameters (the ones tridem sets); anything else goes through
+/// [`Zoltan::set_param`] by name.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Param {
+    /// 0 silences Zoltan; set before anything else.
+    DebugLevel(u32),
+    /// Allowed max/mean imbalance, e.g. 1.05.
+    ImbalanceTol(f64),
+    /// Keep the cuts for point and box queries.
+    KeepCuts(bool),
+    /// Start RCB from the previous cuts when repartitioning.
+    RcbReuse(bool),
+    /// Weights per object (0 or 1 here).
+    ObjWeightDim(u32),
+}
+
+impl Param {
+    fn name_value(&self) -> (&'static str, String) {
+        let flag = |b: bool| if b { "1" } else { "0" }.to_string();
+        match self {
+            Param::DebugLevel(v) => ("DEBUG_LEVEL", v.to_string()),
+            Param::ImbalanceTol(v) => ("IMBALANCE_TOL", v.to_string()),
+            Param::KeepCuts(b) => ("KEEP_CUTS", flag(*b)),
+            Param::RcbReuse(b) => ("RCB_REUSE", flag(*b)),
+            Param::ObjWeightDim(v) => ("OBJ_WEIGHT_DIM", v.to_string()),
+        }
+    }
+}
+
 /// A Zoltan load-balancing structure, bound to a communicator that must
 /// outlive it. Destroyed on drop.
 pub struct Zoltan<'c> {
@@ -135,20 +164,26 @@ impl<'c> Zoltan<'c> {
             _comm: PhantomData,
         };
         // DEBUG_LEVEL first, or Zoltan prints while the rest are set.
-        zo.set_param("DEBUG_LEVEL", "0")?;
+        zo.set(Param::DebugLevel(0))?;
         zo.set_param("LB_METHOD", method.param())?;
         zo.set_param("NUM_GID_ENTRIES", "1")?;
         zo.set_param("NUM_LID_ENTRIES", "1")?;
-        zo.set_param("OBJ_WEIGHT_DIM", "1")?;
+        zo.set(Param::ObjWeightDim(1))?;
         zo.set_param("RETURN_LISTS", "EXPORT")?;
-        zo.set_param("KEEP_CUTS", "1")?;
+        zo.set(Param::KeepCuts(true))?;
         if method == Method::Rcb {
-            zo.set_param("RCB_REUSE", "1")?;
+            zo.set(Param::RcbReuse(true))?;
         }
         Ok(zo)
     }
 
-    /// Sets a Zoltan parameter; an unknown name or bad value is an error.
+    /// Sets a typed parameter.
+    pub fn set(&mut self, p: Param) -> Result<(), ZoltanError> {
+        let (name, value) = p.name_value();
+        self.set_param(name, &value)
+    }
+
+    /// Sets a Zoltan parameter by name; an unknown name or bad value is an error.
     pub fn set_param(&mut self, name: &str, value: &str) -> Result<(), ZoltanError> {
         let (n, v) = (cstring(name)?, cstring(value)?);
         // SAFETY: zz is valid; both strings are NUL-terminated and live across the call.
@@ -258,6 +293,10 @@ impl<'c> Zoltan<'c> {
 
     /// The box of an RCB part, clamped to `domain` (Zoltan reports +-DBL_MAX on outer faces).
     pub fn rcb_box(&self, part: i32, domain: &Aabb) -> Result<Aabb, ZoltanError> {
+        // On one rank Zoltan makes no cut and keeps no box: the part is the domain.
+        if self.size == 1 {
+            return Ok(*domain);
+        }
         let mut ndim = 0;
         let (mut x0, mut y0, mut z0, mut x1, mut y1, mut z1) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
         // SAFETY: plain outputs.

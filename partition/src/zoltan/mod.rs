@@ -6,6 +6,6 @@ mod handle;
 mod library;
 mod partitioner;
 
-pub use handle::{Method, Zoltan};
+pub use handle::{Method, Param, Zoltan};
 pub use library::{initialize, ZoltanError, ZoltanVersion};
 pub use partitioner::ZoltanPartitioner;
