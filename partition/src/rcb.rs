@@ -22,7 +22,7 @@ use mpi::traits::*;
 use rayon::prelude::*;
 
 /// Candidate cuts per histogram round.
-const BINS: usize = 32;
+const BINS: usize = 256;
 
 /// Native RCB.
 #[derive(Debug, Clone)]

@@ -2,7 +2,10 @@
 //!
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos.
 //! 2. Triangle culling: only triangles whose inflated boxes overlap the other
-//!    body's box, and only pairs of those whose inflated boxes overlap.
+//!    body's box, only pairs of those whose inflated boxes overlap, and only
+//!    pairs that neither triangle's plane separates by more than the halo sum
+//!    (the face normals are two separating axes: cheap, and decisive for large
+//!    obstacle triangles whose boxes cover many particles).
 //! 3. Narrow phase: the hybrid distance kernel on all surviving triangle pairs,
 //!    in SIMD batches, multi-threaded.
 //! 4. A pair of triangles is in contact when d < halo_a + halo_b; depth is
@@ -76,6 +79,8 @@ impl Bounds {
 #[derive(Debug, Default)]
 pub struct Detector {
     triangles: Vec<Vec<Triangle>>,
+    /// Unit normal and offset (n · v0) of every world triangle; zero normal if degenerate.
+    planes: Vec<Vec<(DVec3, f64)>>,
     pairs: Vec<(Triangle, Triangle)>,
     owners: Vec<(u32, u32, u32)>,
     out: Vec<Closest>,
@@ -105,6 +110,17 @@ impl Detector {
                         .iter()
                         .map(|t| t.map(|i| b.to_world(mesh.vertices[i as usize]))),
                 );
+            });
+        self.planes.resize(bodies.len(), Vec::new());
+        self.planes
+            .par_iter_mut()
+            .zip(self.triangles.par_iter())
+            .for_each(|(planes, tris)| {
+                planes.clear();
+                planes.extend(tris.iter().map(|t| {
+                    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
+                    (n, n.dot(t[0]))
+                }));
             });
         let boxes: Vec<Bounds> = self
             .triangles
@@ -141,9 +157,15 @@ impl Detector {
                 if !bj.overlaps(&boxes[a]) {
                     continue;
                 }
+                let reach = halos[a] + halos[b];
+                let pb = self.planes[b][j];
                 for &(i, bi) in &ha {
-                    if bi.overlaps(&bj) {
-                        self.pairs.push((ta[i as usize], *t));
+                    let ti = &ta[i as usize];
+                    if bi.overlaps(&bj)
+                        && !plane_separates(pb, ti, reach)
+                        && !plane_separates(self.planes[a][i as usize], t, reach)
+                    {
+                        self.pairs.push((*ti, *t));
                         self.owners.push((k as u32, i, j as u32));
                     }
                 }
@@ -209,6 +231,15 @@ impl Detector {
             deep_contacts: deep,
         }
     }
+}
+
+/// Whether the plane (n, d) of one triangle has all of `t` on one side, farther
+/// than `reach`: then no point of `t` is within `reach` of that triangle.
+#[inline]
+fn plane_separates((n, d): (DVec3, f64), t: &Triangle, reach: f64) -> bool {
+    let h = [n.dot(t[0]) - d, n.dot(t[1]) - d, n.dot(t[2]) - d];
+    let (lo, hi) = (h[0].min(h[1]).min(h[2]), h[0].max(h[1]).max(h[2]));
+    lo > reach || hi < -reach
 }
 
 /// Merges `c` into a contact of the same pair at (nearly) the same place,
