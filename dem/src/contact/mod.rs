@@ -138,39 +138,51 @@ impl Detector {
             .collect();
         let body_pairs = sweep(&boxes, bodies);
 
-        // Triangle pairs of every body pair, culled by inflated boxes.
-        self.pairs.clear();
-        self.owners.clear();
-        for (k, &(a, b)) in body_pairs.iter().enumerate() {
-            let (ta, tb) = (&self.triangles[a], &self.triangles[b]);
-            let ha: Vec<(u32, Bounds)> = ta
-                .iter()
-                .enumerate()
-                .map(|(i, t)| (i as u32, Bounds::of(t, halos[a])))
-                .filter(|(_, bx)| bx.overlaps(&boxes[b]))
-                .collect();
-            if ha.is_empty() {
-                continue;
-            }
-            for (j, t) in tb.iter().enumerate() {
-                let bj = Bounds::of(t, halos[b]);
-                if !bj.overlaps(&boxes[a]) {
-                    continue;
-                }
+        // Triangle pairs of every body pair, culled by inflated boxes and face planes.
+        let (triangles, planes) = (&self.triangles, &self.planes);
+        let owners: Vec<(u32, u32, u32)> = body_pairs
+            .par_iter()
+            .enumerate()
+            .map_init(Vec::new, |ha: &mut Vec<(u32, Bounds)>, (k, &(a, b))| {
+                let (ta, tb) = (&triangles[a], &triangles[b]);
                 let reach = halos[a] + halos[b];
-                let pb = self.planes[b][j];
-                for &(i, bi) in &ha {
-                    let ti = &ta[i as usize];
-                    if bi.overlaps(&bj)
-                        && !plane_separates(pb, ti, reach)
-                        && !plane_separates(self.planes[a][i as usize], t, reach)
-                    {
-                        self.pairs.push((*ti, *t));
-                        self.owners.push((k as u32, i, j as u32));
+                ha.clear();
+                ha.extend(
+                    ta.iter()
+                        .enumerate()
+                        .map(|(i, t)| (i as u32, Bounds::of(t, halos[a])))
+                        .filter(|(_, bx)| bx.overlaps(&boxes[b])),
+                );
+                let mut found = Vec::new();
+                if ha.is_empty() {
+                    return found;
+                }
+                for (j, t) in tb.iter().enumerate() {
+                    let bj = Bounds::of(t, halos[b]);
+                    if !bj.overlaps(&boxes[a]) {
+                        continue;
+                    }
+                    let pb = planes[b][j];
+                    for &(i, bi) in ha.iter() {
+                        let ti = &ta[i as usize];
+                        if bi.overlaps(&bj)
+                            && !plane_separates(pb, ti, reach)
+                            && !plane_separates(planes[a][i as usize], t, reach)
+                        {
+                            found.push((k as u32, i, j as u32));
+                        }
                     }
                 }
-            }
-        }
+                found
+            })
+            .flatten_iter()
+            .collect();
+        self.pairs.clear();
+        self.pairs.par_extend(owners.par_iter().map(|&(k, i, j)| {
+            let (a, b) = body_pairs[k as usize];
+            (triangles[a][i as usize], triangles[b][j as usize])
+        }));
+        self.owners = owners;
         let n = self.pairs.len();
         self.out.resize(n, placeholder());
         self.stats.resize(n, PenaltyStats::default());
