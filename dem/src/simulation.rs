@@ -7,6 +7,7 @@ use crate::effects::{
 use crate::integrate::{drift, half_kick};
 use crate::scene::Scene;
 use crate::world::World;
+use rayon::prelude::*;
 
 /// A running simulation.
 pub struct Simulation {
@@ -72,27 +73,28 @@ impl Simulation {
 
     /// One velocity-Verlet step.
     pub fn step(&mut self) {
-        let h = self.dt;
-        for (i, b) in self.world.bodies.iter_mut().enumerate() {
-            half_kick(
-                b,
-                self.forces.force[i],
-                self.forces.torque[i],
-                h,
-                self.rotation,
-            );
-            drift(b, h, self.rotation);
-        }
+        let (h, rot) = (self.dt, self.rotation);
+        // Bodies are independent here; small scenes stay on one thread.
+        let forces = &self.forces;
+        self.world
+            .bodies
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(i, b)| {
+                half_kick(b, forces.force[i], forces.torque[i], h, rot);
+                drift(b, h, rot);
+            });
         self.evaluate_forces();
-        for (i, b) in self.world.bodies.iter_mut().enumerate() {
-            half_kick(
-                b,
-                self.forces.force[i],
-                self.forces.torque[i],
-                h,
-                self.rotation,
-            );
-        }
+        let forces = &self.forces;
+        self.world
+            .bodies
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(64)
+            .for_each(|(i, b)| {
+                half_kick(b, forces.force[i], forces.torque[i], h, rot);
+            });
         self.world.time += h;
         self.world.step += 1;
         self.totals += self.ctx.stats;

@@ -16,6 +16,15 @@ pub struct World {
 }
 
 impl World {
+    /// A material parameter for every body (0 where the material lacks it;
+    /// the scene has checked that declared effects find what they need).
+    pub fn per_body(&self, param: fn(&Material) -> Option<f64>) -> Vec<f64> {
+        self.bodies
+            .iter()
+            .map(|b| param(&self.materials[b.material]).unwrap_or(0.0))
+            .collect()
+    }
+
     pub fn kinetic_energy(&self) -> f64 {
         self.bodies.iter().map(Body::kinetic_energy).sum()
     }

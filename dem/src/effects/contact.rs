@@ -30,19 +30,12 @@ pub struct ContactEffect {
 
 impl ContactEffect {
     pub fn new(world: &World, kernel: Options) -> Self {
-        let per = |f: fn(&crate::material::Material) -> Option<f64>| -> Vec<f64> {
-            world
-                .bodies
-                .iter()
-                .map(|b| f(&world.materials[b.material]).unwrap_or(0.0))
-                .collect()
-        };
         ContactEffect {
             detector: Detector::default(),
             kernel,
-            halo: per(|m| m.halo),
-            stiffness: per(|m| m.stiffness),
-            restitution: per(|m| m.restitution),
+            halo: world.per_body(|m| m.halo),
+            stiffness: world.per_body(|m| m.stiffness),
+            restitution: world.per_body(|m| m.restitution),
             energy: 0.0,
         }
     }

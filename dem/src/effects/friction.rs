@@ -28,17 +28,10 @@ pub struct FrictionEffect {
 
 impl FrictionEffect {
     pub fn new(world: &World) -> Self {
-        let per = |f: fn(&crate::material::Material) -> Option<f64>| -> Vec<f64> {
-            world
-                .bodies
-                .iter()
-                .map(|b| f(&world.materials[b.material]).unwrap_or(0.0))
-                .collect()
-        };
         FrictionEffect {
-            mu: per(|m| m.friction),
-            stiffness: per(|m| m.stiffness),
-            restitution: per(|m| m.restitution),
+            mu: world.per_body(|m| m.friction),
+            stiffness: world.per_body(|m| m.stiffness),
+            restitution: world.per_body(|m| m.restitution),
             history: HashMap::new(),
         }
     }
