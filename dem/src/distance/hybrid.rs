@@ -3,15 +3,20 @@
 //! Hybrid: the penalty kernel runs on a batch; if any pair of the batch was not
 //! certified, the batch is recomputed by brute force ([`Fallback::WholeBatch`],
 //! the published rule), or only its uncertified pairs are
-//! ([`Fallback::FailedPairs`]). Either way every hybrid answer is within the
+//! ([`Fallback::FailedPairs`], gathered into full SIMD batches of the brute
+//! force). Either way every hybrid answer is within the
 //! certificate's tolerance of the exact one, or is the brute-force answer.
 //!
 //! Threads: rayon over batches, with OpenMP-like static scheduling (equal
 //! contiguous chunks, one per thread) or dynamic scheduling (chunks of `grain`
 //! batches taken on demand).
 
+use super::distance_triangle_triangle_batch::{
+    distance_triangle_triangle_batch, LANES as BRUTE_LANES,
+};
+use super::penalty::Isa;
 use super::penalty::{dummy_closest, penalty_many, PenaltyParams, PenaltyStats, UnsupportedBatch};
-use super::{distance_triangle_triangle, Closest, Triangle};
+use super::{Closest, Triangle};
 use rayon::prelude::*;
 
 /// Which computation answers.
@@ -181,13 +186,17 @@ fn serial_chunk(
         pairs: pairs.len(),
         ..Counts::default()
     };
+    let isa = Isa::detect();
     match opts.method {
         Method::Brute => {
-            for ((a, b), o) in pairs.iter().zip(out.iter_mut()) {
-                *o = distance_triangle_triangle(a, b);
+            for (p, o) in pairs.chunks(BRUTE_LANES).zip(out.chunks_mut(BRUTE_LANES)) {
+                distance_triangle_triangle_batch(p, isa, o);
             }
         }
         Method::Penalty | Method::Hybrid => {
+            // Uncertified pairs waiting for a full brute-force batch (FailedPairs).
+            let mut pending: Vec<usize> = Vec::with_capacity(2 * BRUTE_LANES);
+            let mut offset = 0;
             for ((p, o), s) in pairs
                 .chunks(opts.batch)
                 .zip(out.chunks_mut(opts.batch))
@@ -198,12 +207,35 @@ fn serial_chunk(
                 counts.certified += certified;
                 if opts.method == Method::Hybrid && certified < p.len() {
                     counts.fallback_batches += 1;
-                    for ((a, b), (o, s)) in p.iter().zip(o.iter_mut().zip(s.iter())) {
-                        if opts.fallback == Fallback::WholeBatch || !s.converged {
-                            *o = distance_triangle_triangle(a, b);
-                            counts.fallback_pairs += 1;
+                    match opts.fallback {
+                        Fallback::WholeBatch => {
+                            for (pp, oo) in p.chunks(BRUTE_LANES).zip(o.chunks_mut(BRUTE_LANES)) {
+                                distance_triangle_triangle_batch(pp, isa, oo);
+                            }
+                            counts.fallback_pairs += p.len();
+                        }
+                        Fallback::FailedPairs => {
+                            pending.extend(
+                                (0..p.len())
+                                    .filter(|&k| !s[k].converged)
+                                    .map(|k| offset + k),
+                            );
                         }
                     }
+                }
+                offset += p.len();
+            }
+            // Failed pairs compacted into full SIMD batches.
+            counts.fallback_pairs += pending.len();
+            let mut buf = [(pairs[0].0, pairs[0].1); BRUTE_LANES];
+            let mut res = [out[0]; BRUTE_LANES];
+            for group in pending.chunks(BRUTE_LANES) {
+                for (slot, &k) in group.iter().enumerate() {
+                    buf[slot] = pairs[k];
+                }
+                distance_triangle_triangle_batch(&buf[..group.len()], isa, &mut res[..group.len()]);
+                for (slot, &k) in group.iter().enumerate() {
+                    out[k] = res[slot];
                 }
             }
         }

@@ -15,6 +15,7 @@ mod certificate;
 mod closest_point_segment_segment;
 mod closest_point_triangle;
 mod distance_triangle_triangle;
+mod distance_triangle_triangle_batch;
 mod finish;
 pub mod hybrid;
 pub mod penalty;
@@ -24,6 +25,9 @@ pub use certificate::certified_error_bound;
 pub use closest_point_segment_segment::closest_points_segment_segment;
 pub use closest_point_triangle::closest_point_triangle;
 pub use distance_triangle_triangle::distance_triangle_triangle;
+pub use distance_triangle_triangle_batch::{
+    distance_triangle_triangle_batch, distance_triangle_triangle_many, LANES as BRUTE_LANES,
+};
 pub use hybrid::{
     distance_many, distances, Counts, Fallback, Method, Options, Schedule, Threading,
 };
