@@ -83,7 +83,8 @@ fn plane_of(t: &[V3; 3]) -> Plane {
         let longest = l0.max(l1).max(l2);
         let uv = (l0 * l1 * l2) / longest;
         const FLAT: f64 = 64.0 * f64::EPSILON;
-        let usable = nn > 0.0 && !(nn <= FLAT * FLAT * uv);
+        // Same test as the scalar `usable_normal`: not flat to rounding.
+        let usable = nn > 0.0 && nn > FLAT * FLAT * uv;
         let e = [e0, e1, e2];
         for k in 0..3 {
             p.n[k][l] = n[k];
@@ -210,9 +211,9 @@ fn batch(pk: &Packed) -> (V3, V3) {
     }
     for l in 0..LANES {
         if pierce[l] {
-            for k in 0..3 {
-                best.p[k][l] = px[k][l];
-                best.q[k][l] = px[k][l];
+            for (k, pxk) in px.iter().enumerate() {
+                best.p[k][l] = pxk[l];
+                best.q[k][l] = pxk[l];
             }
         }
     }
