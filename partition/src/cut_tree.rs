@@ -39,27 +39,26 @@ impl CutTree {
     }
 
     /// Appends the ranks whose region overlaps the closed box `b`.
+    #[inline]
     pub fn ranks_overlapping(&self, b: &Aabb, out: &mut Vec<i32>) {
-        let mut stack = [0usize; 64];
-        let mut top = 1;
-        while top > 0 {
-            top -= 1;
-            match self.nodes[stack[top]] {
-                Node::Leaf(r) => out.push(r),
-                Node::Cut {
-                    dim,
-                    value,
-                    left,
-                    right,
-                } => {
-                    if b.lo[dim] <= value {
-                        stack[top] = left;
-                        top += 1;
-                    }
-                    if b.hi[dim] > value {
-                        stack[top] = right;
-                        top += 1;
-                    }
+        self.visit(0, b, out);
+    }
+
+    // Recursion depth is the tree depth, log2 of the ranks: no stack to set up.
+    fn visit(&self, n: usize, b: &Aabb, out: &mut Vec<i32>) {
+        match self.nodes[n] {
+            Node::Leaf(r) => out.push(r),
+            Node::Cut {
+                dim,
+                value,
+                left,
+                right,
+            } => {
+                if b.lo[dim] <= value {
+                    self.visit(left, b, out);
+                }
+                if b.hi[dim] > value {
+                    self.visit(right, b, out);
                 }
             }
         }
