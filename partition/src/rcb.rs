@@ -158,14 +158,15 @@ impl Rcb {
                                     BINS + 1
                                 } else {
                                     let f = ((x - a) / (b - a) * BINS as f64).ceil() as usize;
-                                    let mut k = f.min(BINS);
-                                    while k > 0 && x <= candidate(bracket[g], k - 1) {
-                                        k -= 1;
+                                    let k = f.min(BINS);
+                                    // The estimate is off by at most one bin (rounding).
+                                    if k > 0 && x <= candidate(bracket[g], k - 1) {
+                                        k - 1
+                                    } else if x > candidate(bracket[g], k) {
+                                        k + 1
+                                    } else {
+                                        k
                                     }
-                                    while k <= BINS && x > candidate(bracket[g], k) {
-                                        k += 1;
-                                    }
-                                    k
                                 };
                                 if k <= BINS {
                                     acc[g * (BINS + 1) + k] += it.weight;
