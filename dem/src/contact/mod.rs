@@ -81,6 +81,8 @@ pub struct Detector {
     triangles: Vec<Vec<Triangle>>,
     /// Unit normal and offset (n · v0) of every world triangle; zero normal if degenerate.
     planes: Vec<Vec<(DVec3, f64)>>,
+    /// Box of every world triangle, inflated by its body's halo.
+    bounds: Vec<Vec<Bounds>>,
     pairs: Vec<(Triangle, Triangle)>,
     owners: Vec<(u32, u32, u32)>,
     out: Vec<Closest>,
@@ -122,13 +124,21 @@ impl Detector {
                     (n, n.dot(t[0]))
                 }));
             });
+        self.bounds.resize(bodies.len(), Vec::new());
+        self.bounds
+            .par_iter_mut()
+            .zip(self.triangles.par_iter())
+            .zip(halos.par_iter())
+            .for_each(|((bounds, tris), &h)| {
+                bounds.clear();
+                bounds.extend(tris.iter().map(|t| Bounds::of(t, h)));
+            });
         let boxes: Vec<Bounds> = self
-            .triangles
+            .bounds
             .iter()
-            .zip(halos)
-            .map(|(tris, &h)| {
-                tris.iter()
-                    .map(|t| Bounds::of(t, h))
+            .map(|bs| {
+                bs.iter()
+                    .copied()
                     .reduce(|a, b| a.union(&b))
                     .unwrap_or(Bounds {
                         lo: DVec3::ZERO,
@@ -139,7 +149,7 @@ impl Detector {
         let body_pairs = sweep(&boxes, bodies);
 
         // Triangle pairs of every body pair, culled by inflated boxes and face planes.
-        let (triangles, planes) = (&self.triangles, &self.planes);
+        let (triangles, planes, bounds) = (&self.triangles, &self.planes, &self.bounds);
         let owners: Vec<(u32, u32, u32)> = body_pairs
             .par_iter()
             .enumerate()
@@ -148,17 +158,18 @@ impl Detector {
                 let reach = halos[a] + halos[b];
                 ha.clear();
                 ha.extend(
-                    ta.iter()
+                    bounds[a]
+                        .iter()
                         .enumerate()
-                        .map(|(i, t)| (i as u32, Bounds::of(t, halos[a])))
-                        .filter(|(_, bx)| bx.overlaps(&boxes[b])),
+                        .filter(|(_, bx)| bx.overlaps(&boxes[b]))
+                        .map(|(i, bx)| (i as u32, *bx)),
                 );
                 let mut found = Vec::new();
                 if ha.is_empty() {
                     return found;
                 }
                 for (j, t) in tb.iter().enumerate() {
-                    let bj = Bounds::of(t, halos[b]);
+                    let bj = bounds[b][j];
                     if !bj.overlaps(&boxes[a]) {
                         continue;
                     }
