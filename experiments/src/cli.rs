@@ -27,6 +27,17 @@ pub enum Command {
     Partition(PartitionArgs),
     /// Run a DEM scene (TOML) on this node.
     Run(RunArgs),
+    /// Plot the JSON lines of `tridem partition --json` runs (time and ghosts per partitioner).
+    PartitionPlot(PartitionPlotArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct PartitionPlotArgs {
+    /// JSON lines from `tridem partition --json`.
+    pub input: PathBuf,
+    /// The SVG to write.
+    #[arg(long)]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]

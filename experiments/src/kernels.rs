@@ -325,7 +325,8 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
         points.push(plot::Point {
             series: sweep.to_string(),
             x: pen_ns,
-            y: max,
+            y: median,
+            certified: cert as f64 / n,
             label: label(sweep, &prm, batch),
         });
         bar.inc(1);

@@ -22,6 +22,7 @@ fn main() -> ExitCode {
         cli::Command::Kernels(args) => kernels::run(&args),
         cli::Command::Partition(args) => partition_cmd::run(&args),
         cli::Command::Run(args) => run_cmd::run(&args),
+        cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

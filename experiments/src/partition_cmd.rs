@@ -257,3 +257,47 @@ fn write_csv(path: &std::path::Path, records: &[StepMetrics], args: &PartitionAr
     f.write_all(text.as_bytes())
         .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))
 }
+
+/// `tridem partition-plot`: the first step of every run in a JSON-lines file.
+pub fn plot(args: &crate::cli::PartitionPlotArgs) -> CliResult {
+    let name = args.input.display().to_string();
+    let text = std::fs::read_to_string(&args.input)
+        .map_err(|e| CliError::input(format!("{name}: {e}")))?;
+    let mut records = Vec::new();
+    for (i, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
+        let v: serde_json::Value = serde_json::from_str(line)
+            .map_err(|e| CliError::input(format!("{name}:{}: {e}", i + 1)))?;
+        let field = |k: &str| {
+            v.get(k)
+                .ok_or_else(|| CliError::input(format!("{name}:{}: missing field `{k}`", i + 1)))
+        };
+        let num = |k: &str| {
+            field(k)?.as_f64().ok_or_else(|| {
+                CliError::input(format!("{name}:{}: field `{k}` is not a number", i + 1))
+            })
+        };
+        let text = |k: &str| {
+            field(k)?.as_str().map(String::from).ok_or_else(|| {
+                CliError::input(format!("{name}:{}: field `{k}` is not a string", i + 1))
+            })
+        };
+        records.push(crate::plot::PartitionRecord {
+            workload: text("workload")?,
+            partitioner: text("partitioner")?,
+            step: num("step")? as u64,
+            partition_s: num("partition_s")?,
+            ghost_items: num("ghost_items")?,
+        });
+    }
+    if records.is_empty() {
+        return Err(CliError::input(format!("{name}: no records")));
+    }
+    crate::plot::partition_summary(&args.output, &records)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", args.output.display())))?;
+    eprintln!("wrote {}", args.output.display());
+    Ok(())
+}

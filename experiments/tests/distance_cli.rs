@@ -167,3 +167,50 @@ fn kernels_accuracy_writes_csv_and_plot() {
     assert!(svg.contains("<svg"));
     let _ = std::fs::remove_dir_all(dir);
 }
+
+#[test]
+fn partition_plot_reads_json_lines_and_names_bad_lines() {
+    let dir = std::env::temp_dir().join(format!("tridem-pplot-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let input = dir.join("runs.jsonl");
+    let rec = |w: &str, p: &str, t: f64, g: u64| {
+        format!(
+            r#"{{"workload":"{w}","partitioner":"{p}","step":0,"partition_s":{t},"ghost_items":{g}}}"#
+        )
+    };
+    let lines = [
+        rec("uniform", "rcb", 0.05, 2000),
+        rec("uniform", "metis", 3.0, 5000),
+        rec("blobs", "rcb", 0.06, 8000),
+    ];
+    std::fs::write(&input, lines.join("\n")).unwrap();
+    let svg = dir.join("p.svg");
+    let (code, _, err) = tridem(
+        &[
+            "partition-plot",
+            input.to_str().unwrap(),
+            "--output",
+            svg.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.contains("<svg") && text.contains("metis") && text.contains("blobs"));
+    std::fs::write(&input, format!("{}\n{{\"workload\":\"x\"}}\n", lines[0])).unwrap();
+    let (code, _, err) = tridem(
+        &[
+            "partition-plot",
+            input.to_str().unwrap(),
+            "--output",
+            svg.to_str().unwrap(),
+        ],
+        "",
+    );
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("runs.jsonl:2: missing field `partitioner`"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(dir);
+}
