@@ -243,7 +243,7 @@ fn serial_chunk(
     counts
 }
 
-/// Convenience: distances of all pairs with default options and fresh buffers.
+/// Distances of all pairs with the given options, into fresh buffers.
 pub fn distances(
     pairs: &[(Triangle, Triangle)],
     opts: &Options,
