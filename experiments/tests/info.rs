@@ -47,7 +47,20 @@ fn help_lists_subcommands() {
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success());
-    assert!(text.contains("info"), "{text}");
+    for sub in [
+        "info",
+        "run",
+        "distance",
+        "kernels",
+        "partition",
+        "partition-plot",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.trim_start().starts_with(&format!("{sub} "))),
+            "`{sub}` missing from --help:\n{text}"
+        );
+    }
 }
 
 #[test]
