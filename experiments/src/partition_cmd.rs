@@ -104,15 +104,15 @@ pub fn run(args: &PartitionArgs) -> CliResult {
             );
             let queries_per_s = box_query_rate(&world, part.as_ref(), &local, halo)?;
             if me == 0 {
-                let record = serde_json::json!({
-                    "step": m.step, "partitioner": m.partitioner, "workload": workload_name(args),
-                    "ranks": m.ranks, "items": m.items, "imbalance_before": imbalance_before,
-                    "imbalance": m.imbalance, "partition_s": m.partition_s, "migrate_s": m.migrate_s,
-                    "migrated_items": m.migrated_items, "migrated_bytes": m.migrated_bytes,
-                    "ghost_items": m.ghost_items, "ghost_bytes": m.ghost_bytes,
-                    "neighbours_max": m.neighbours_max, "neighbours_mean": m.neighbours_mean,
+                // The step's metrics, plus what only this command knows.
+                let mut record = serde_json::to_value(&m).expect("metrics serialise");
+                let extra = serde_json::json!({
+                    "workload": workload_name(args), "imbalance_before": imbalance_before,
                     "halo": halo, "box_queries_per_s": queries_per_s,
                 });
+                if let (Some(r), Some(e)) = (record.as_object_mut(), extra.as_object()) {
+                    r.extend(e.clone());
+                }
                 if args.json {
                     match &bar {
                         Some(b) => b.suspend(|| println!("{record}")),
