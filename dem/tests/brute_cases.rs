@@ -11,11 +11,11 @@ fn brute_matches_references_on_every_case() {
         let l = dem::distance::pair_scale(&c.a, &c.b);
         let err = (r.distance - c.reference).abs();
         // P on the first triangle, Q on the second, |P - Q| the distance.
-        let p_off = common::offset_from_triangle(r.p, &c.a);
-        let q_off = common::offset_from_triangle(r.q, &c.b);
-        let pq = ((r.p - r.q).length() - r.distance).abs();
         let on_tol = common::membership_tolerance(&c);
-        if !(err <= 1e-12 * l && p_off <= on_tol && q_off <= on_tol && pq <= on_tol) {
+        let (p_in, p_off) = common::within_triangle(r.p, &c.a, on_tol);
+        let (q_in, q_off) = common::within_triangle(r.q, &c.b, on_tol);
+        let pq = ((r.p - r.q).length() - r.distance).abs();
+        if !(err <= 1e-12 * l && p_in && q_in && pq <= on_tol) {
             failures.push(format!(
                 "line {} [{}]: got {:e}, reference {:e}, err/L {:e}, P off {:e}, Q off {:e}, |PQ| - d {:e}",
                 c.line, c.category, r.distance, c.reference, err / l, p_off / l, q_off / l, pq / l

@@ -26,10 +26,10 @@ fn hybrid_matches_references_on_every_case_for_every_batch_size_and_fallback() {
                 let l = pair_scale(&c.a, &c.b);
                 let tol = common::membership_tolerance(c);
                 let err = (r.distance - c.reference).abs();
-                let p_off = common::offset_from_triangle(r.p, &c.a);
-                let q_off = common::offset_from_triangle(r.q, &c.b);
+                let (p_in, p_off) = common::within_triangle(r.p, &c.a, tol);
+                let (q_in, q_off) = common::within_triangle(r.q, &c.b, tol);
                 let pq = ((r.p - r.q).length() - r.distance).abs();
-                if !(err <= 1e-12 * l && p_off <= tol && q_off <= tol && pq <= tol) {
+                if !(err <= 1e-12 * l && p_in && q_in && pq <= tol) {
                     failures.push(format!(
                         "line {} [{}] by {}: got {:e}, reference {:e}, err/L {:e}, P off/L {:e}, Q off/L {:e}",
                         c.line, c.category, r.solver.name(), r.distance, c.reference, err / l, p_off / l, q_off / l

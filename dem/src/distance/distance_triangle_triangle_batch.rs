@@ -10,7 +10,7 @@
 //! no operation is contracted or reordered, so answers agree with the scalar
 //! brute force bit for bit on the same machine (the tests check it).
 
-use super::penalty::Isa;
+use super::isa::Isa;
 use super::{Closest, Solver, Triangle};
 use glam::DVec3;
 
@@ -263,9 +263,8 @@ pub fn distance_triangle_triangle_batch(
             pk.a[0][k][l] = 0.0;
         }
     }
-    let (p, q) = match isa {
-        // SAFETY: `Isa::detect` found these features on this CPU (callers pass
-        // the detected Isa or a lower one).
+    let (p, q) = match isa.available() {
+        // SAFETY: `Isa::available` checked these features on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 => unsafe { batch_avx512(&pk) },
         #[cfg(target_arch = "x86_64")]

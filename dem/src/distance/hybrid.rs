@@ -14,7 +14,7 @@
 use super::distance_triangle_triangle_batch::{
     distance_triangle_triangle_batch, LANES as BRUTE_LANES,
 };
-use super::penalty::Isa;
+use super::isa::Isa;
 use super::penalty::{dummy_closest, penalty_many, PenaltyParams, PenaltyStats, UnsupportedBatch};
 use super::{Closest, Triangle};
 use rayon::prelude::*;

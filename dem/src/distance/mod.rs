@@ -16,10 +16,13 @@ mod closest_point_segment_segment;
 mod closest_point_triangle;
 mod distance_triangle_triangle;
 mod distance_triangle_triangle_batch;
-mod finish;
 pub mod hybrid;
+mod isa;
+mod lanes;
 pub mod penalty;
+mod penalty_finish;
 mod random_pairs;
+mod solve_spd4;
 
 pub use certificate::certified_error_bound;
 pub use closest_point_segment_segment::closest_points_segment_segment;
@@ -31,9 +34,9 @@ pub use distance_triangle_triangle_batch::{
 pub use hybrid::{
     distance_many, distances, Counts, Fallback, Method, Options, Schedule, Threading,
 };
+pub use isa::Isa;
 pub use penalty::{
-    penalty_many, penalty_many_on, penalty_scalar, Isa, PenaltyParams, PenaltyStats,
-    UnsupportedBatch,
+    penalty_many, penalty_many_on, penalty_scalar, PenaltyParams, PenaltyStats, UnsupportedBatch,
 };
 pub use random_pairs::random_unit_pairs;
 

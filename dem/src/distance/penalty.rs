@@ -8,20 +8,23 @@
 //! Hessian G_ij = u_i . u_j and gradient g_i = u_i . r. The six constraints
 //! -a, -b, a+b-1, -c, -d, c+d-1 <= 0 are penalised by (rho/2) sum max(0, c_k)^2.
 //! Each Newton step solves (G + rho J_act^T J_act + delta I) ds = -(g + rho J^T max(0,c))
-//! by an unrolled Cholesky factorisation: the matrix is symmetric positive
-//! definite thanks to delta, which also regularises the parallel case, where G
-//! is singular.
+//! (by 2x2 blocks, see `solve_spd4.rs`): the matrix is symmetric positive definite thanks
+//! to delta, which also regularises G, singular for every pair (four edge
+//! vectors in three dimensions) and doubly so for parallel faces.
 //!
-//! The penalty answer is then *finished* on the feature pair it identifies
-//! (vertex, edge or face of each triangle, from the active constraints) and
-//! *certified* (see [`super::certified_error_bound`]): a pair is reported as
-//! converged only when its answer is proven within `tol * L` of the true distance,
-//! L the diagonal of the pair's bounding box. All parameters are relative, so
-//! results do not depend on the size or position of the triangles.
+//! The penalty answer is then *finished* exactly on the feature pair it
+//! identifies and *certified* ([`super::penalty_finish`]): a pair is reported as
+//! converged only when its answer is proven within `tol * L` of the true
+//! distance, L the diagonal of the pair's bounding box. Every stage is a loop
+//! over the lanes of the batch, so the whole kernel runs in SIMD registers.
+//! All parameters are relative, so results do not depend on the size or
+//! position of the triangles.
 
-use super::certificate::certified_error_bound;
-use super::finish::finish_on_features;
-use super::{pair_scale, Closest, Solver, Triangle};
+use super::isa::Isa;
+use super::lanes::{F, V3};
+use super::penalty_finish::{finish_lanes, Finished};
+use super::solve_spd4::{solve_spd4_by_blocks, Sym4, SYM4_INDEX};
+use super::{Closest, Solver, Triangle};
 use glam::DVec3;
 
 /// Parameters of the penalty Newton solver. All are dimensionless.
@@ -63,158 +66,115 @@ pub struct PenaltyStats {
     pub iterations: u8,
 }
 
-/// Barycentric parameters (a, b, c, d) after Newton, per pair.
-pub type Params4 = [f64; 4];
-
 /// Batch sizes the kernel is compiled for.
 pub const BATCH_SIZES: [usize; 7] = [1, 2, 4, 8, 16, 32, 64];
 
 /// Structure-of-arrays input of one batch of `N` pairs, in each pair's local
 /// frame (origin at its first vertex, A0).
 #[derive(Clone, Copy)]
-struct Batch<const N: usize> {
-    w: [[f64; N]; 3],
-    u: [[[f64; N]; 3]; 4],
+pub(crate) struct Batch<const N: usize> {
+    /// A0 - B0.
+    pub w: V3<N>,
+    /// A1 - A0, A2 - A0, B0 - B1, B0 - B2.
+    pub u: [V3<N>; 4],
 }
 
 impl<const N: usize> Batch<N> {
     /// Packs up to N pairs; missing lanes repeat the last pair (their results are ignored).
     fn pack(pairs: &[(Triangle, Triangle)]) -> Self {
-        let mut w = [[0.0; N]; 3];
-        let mut u = [[[0.0; N]; 3]; 4];
+        let zero = V3([F::splat(0.0); 3]);
+        let mut batch = Batch {
+            w: zero,
+            u: [zero; 4],
+        };
         for lane in 0..N {
             let (a, b) = &pairs[lane.min(pairs.len() - 1)];
             let o = a[0];
-            // w = A0 - B0 and u = (A1-A0, A2-A0, -(B1-B0), -(B2-B0)) in the local frame.
             let ws = o - b[0];
             let us = [a[1] - o, a[2] - o, b[0] - b[1], b[0] - b[2]];
             for k in 0..3 {
-                w[k][lane] = ws[k];
+                batch.w.0[k].0[lane] = ws[k];
                 for (i, ui) in us.iter().enumerate() {
-                    u[i][k][lane] = ui[k];
+                    batch.u[i].0[k].0[lane] = ui[k];
                 }
             }
         }
-        Batch { w, u }
+        batch
     }
 }
 
-/// Newton on one batch; returns per lane the parameters and the step count.
-///
-/// Written as straight-line scalar code inside loops over the lanes, with
-/// `max`/`min` instead of branches, so that the compiler vectorises each loop
-/// across lanes (one pair per SIMD lane). `#[inline(always)]` lets the
-/// target-feature wrappers below compile it for AVX2 and AVX-512.
+/// The scale every relative parameter multiplies: trace(G) / 4, the mean
+/// squared edge length (1 for a pair of points, to keep systems solvable).
 #[inline(always)]
-fn newton_batch<const N: usize>(batch: &Batch<N>, prm: &PenaltyParams) -> ([[f64; N]; 4], [u8; N]) {
-    let u = &batch.u;
-    let w = &batch.w;
-    // Gram matrix G (symmetric, 10 entries) and scale per lane.
-    let mut g = [[0.0f64; N]; 10];
-    let mut rho = [0.0f64; N];
-    let mut delta = [0.0f64; N];
-    const IJ: [(usize, usize); 10] = [
-        (0, 0),
-        (0, 1),
-        (0, 2),
-        (0, 3),
-        (1, 1),
-        (1, 2),
-        (1, 3),
-        (2, 2),
-        (2, 3),
-        (3, 3),
-    ];
-    for l in 0..N {
-        for (k, &(i, j)) in IJ.iter().enumerate() {
-            g[k][l] = u[i][0][l] * u[j][0][l] + u[i][1][l] * u[j][1][l] + u[i][2][l] * u[j][2][l];
-        }
-        let scale = 0.25 * (g[0][l] + g[4][l] + g[7][l] + g[9][l]);
-        // A pair of points (all edges zero) has scale 0: keep the system solvable.
-        let scale = if scale > 0.0 { scale } else { 1.0 };
-        rho[l] = prm.penalty * scale;
-        delta[l] = prm.regularisation * scale;
+fn gram_scale<const N: usize>(g: &Sym4<N>) -> F<N> {
+    let scale = 0.25 * (g[0] + g[4] + g[7] + g[9]);
+    scale.gt(F::splat(0.0)).select(scale, F::splat(1.0))
+}
+
+/// Newton's iterates of one batch: per lane the parameters (a, b, c, d), the
+/// scale trace(G) / 4 and the step count.
+#[inline(always)]
+fn newton_lanes<const N: usize>(
+    batch: &Batch<N>,
+    prm: &PenaltyParams,
+) -> ([F<N>; 4], F<N>, [u8; N]) {
+    let (w, u) = (batch.w, &batch.u);
+    let mut g: Sym4<N> = [F::splat(0.0); 10];
+    for (k, &(i, j)) in SYM4_INDEX.iter().enumerate() {
+        g[k] = u[i].dot(u[j]);
     }
-    let third = 1.0 / 3.0;
-    let mut s = [[third; N]; 4];
+    let scale = gram_scale(&g);
+    let rho = scale * prm.penalty;
+    let mut delta = scale * prm.regularisation;
+    // Keep the system numerically positive definite: G is singular and a
+    // vanishing delta would let rounding make it indefinite.
+    let delta_min = scale * MIN_REGULARISATION;
+    let zero = F::splat(0.0);
+    let mut s = [F::splat(1.0 / 3.0); 4];
     let mut iters = [prm.max_iterations as u8; N];
     for it in 0..prm.max_iterations {
-        let mut step_max = [0.0f64; N];
-        for l in 0..N {
-            let (a, b, c, d) = (s[0][l], s[1][l], s[2][l], s[3][l]);
-            // Residual r = w + sum s_i u_i and gradient g_i = u_i . r.
-            let mut r = [0.0; 3];
-            for (k, rk) in r.iter_mut().enumerate() {
-                *rk = w[k][l] + a * u[0][k][l] + b * u[1][k][l] + c * u[2][k][l] + d * u[3][k][l];
-            }
-            let mut grad = [0.0; 4];
-            for (i, gi) in grad.iter_mut().enumerate() {
-                *gi = u[i][0][l] * r[0] + u[i][1][l] * r[1] + u[i][2][l] * r[2];
-            }
-            // Constraint violations and active masks (branch-free).
-            let v = [(-a).max(0.0), (-b).max(0.0), (a + b - 1.0).max(0.0)];
-            let vv = [(-c).max(0.0), (-d).max(0.0), (c + d - 1.0).max(0.0)];
-            let m = |x: f64| if x > 0.0 { 1.0 } else { 0.0 };
-            let p = rho[l];
-            grad[0] += p * (v[2] - v[0]);
-            grad[1] += p * (v[2] - v[1]);
-            grad[2] += p * (vv[2] - vv[0]);
-            grad[3] += p * (vv[2] - vv[1]);
-            let dl = delta[l];
-            let h00 = g[0][l] + p * (m(v[0]) + m(v[2])) + dl;
-            let h01 = g[1][l] + p * m(v[2]);
-            let h11 = g[4][l] + p * (m(v[1]) + m(v[2])) + dl;
-            let h22 = g[7][l] + p * (m(vv[0]) + m(vv[2])) + dl;
-            let h23 = g[8][l] + p * m(vv[2]);
-            let h33 = g[9][l] + p * (m(vv[1]) + m(vv[2])) + dl;
-            let (h02, h03, h12, h13) = (g[2][l], g[3][l], g[5][l], g[6][l]);
-            // Cholesky H = L L^T, unrolled; one division per pivot, then products.
-            let l00 = h00.sqrt();
-            let i00 = 1.0 / l00;
-            let l10 = h01 * i00;
-            let l20 = h02 * i00;
-            let l30 = h03 * i00;
-            let l11 = (h11 - l10 * l10).sqrt();
-            let i11 = 1.0 / l11;
-            let l21 = (h12 - l20 * l10) * i11;
-            let l31 = (h13 - l30 * l10) * i11;
-            let l22 = (h22 - l20 * l20 - l21 * l21).sqrt();
-            let i22 = 1.0 / l22;
-            let l32 = (h23 - l30 * l20 - l31 * l21) * i22;
-            let l33 = (h33 - l30 * l30 - l31 * l31 - l32 * l32).sqrt();
-            let i33 = 1.0 / l33;
-            // Forward then backward substitution for -grad.
-            let y0 = -grad[0] * i00;
-            let y1 = (-grad[1] - l10 * y0) * i11;
-            let y2 = (-grad[2] - l20 * y0 - l21 * y1) * i22;
-            let y3 = (-grad[3] - l30 * y0 - l31 * y1 - l32 * y2) * i33;
-            let x3 = y3 * i33;
-            let x2 = (y2 - l32 * x3) * i22;
-            let x1 = (y1 - l21 * x2 - l31 * x3) * i11;
-            let x0 = (y0 - l10 * x1 - l20 * x2 - l30 * x3) * i00;
-            s[0][l] = a + x0;
-            s[1][l] = b + x1;
-            s[2][l] = c + x2;
-            s[3][l] = d + x3;
-            step_max[l] = x0.abs().max(x1.abs()).max(x2.abs()).max(x3.abs());
-            // Keep the system numerically positive definite: in the parallel case G
-            // is singular and a vanishing delta would let rounding make it indefinite.
-            delta[l] =
-                (dl * prm.regularisation_decay).max(MIN_REGULARISATION * rho[l] / prm.penalty);
-        }
-        // Bookkeeping outside the vectorised loop: when did each lane settle?
+        let [a, b, c, d] = s;
+        // Residual r = w + sum s_i u_i and gradient g_i = u_i . r.
+        let r = w + u[0].scale(a) + u[1].scale(b) + u[2].scale(c) + u[3].scale(d);
+        // Constraint violations and active masks (selects, not branches).
+        let v = [(-a).max(zero), (-b).max(zero), (a + b - 1.0).max(zero)];
+        let vv = [(-c).max(zero), (-d).max(zero), (c + d - 1.0).max(zero)];
+        let m = |x: F<N>| x.gt(zero).to_f() * rho;
+        let grad = [
+            u[0].dot(r) + rho * (v[2] - v[0]),
+            u[1].dot(r) + rho * (v[2] - v[1]),
+            u[2].dot(r) + rho * (vv[2] - vv[0]),
+            u[3].dot(r) + rho * (vv[2] - vv[1]),
+        ];
+        let h = [
+            g[0] + m(v[0]) + m(v[2]) + delta,
+            g[1] + m(v[2]),
+            g[2],
+            g[3],
+            g[4] + m(v[1]) + m(v[2]) + delta,
+            g[5],
+            g[6],
+            g[7] + m(vv[0]) + m(vv[2]) + delta,
+            g[8] + m(vv[2]),
+            g[9] + m(vv[1]) + m(vv[2]) + delta,
+        ];
+        let x = solve_spd4_by_blocks(&h, [-grad[0], -grad[1], -grad[2], -grad[3]]);
+        s = [a + x[0], b + x[1], c + x[2], d + x[3]];
+        let step_max = x[0].abs().max(x[1].abs()).max(x[2].abs()).max(x[3].abs());
+        delta = (delta * prm.regularisation_decay).max(delta_min);
+        // Bookkeeping: when did each lane settle?
         let mut all_done = true;
-        for l in 0..N {
-            if step_max[l] <= STEP_TOL && iters[l] as usize > it + 1 {
-                iters[l] = (it + 1) as u8;
+        for (n, &step) in iters.iter_mut().zip(&step_max.0) {
+            if step <= STEP_TOL && *n as usize > it + 1 {
+                *n = (it + 1) as u8;
             }
-            all_done &= (iters[l] as usize) <= it + 1;
+            all_done &= (*n as usize) <= it + 1;
         }
         if all_done {
             break;
         }
     }
-    (s, iters)
+    (s, scale, iters)
 }
 
 /// Floor of the regularisation, relative to trace(G) / 4.
@@ -223,78 +183,38 @@ const MIN_REGULARISATION: f64 = 1e-12;
 /// Newton steps below this (in barycentric units) count as settled.
 const STEP_TOL: f64 = 1e-12;
 
+/// Newton, then finish and certificate: the whole kernel on one batch.
+#[inline(always)]
+fn kernel<const N: usize>(batch: &Batch<N>, prm: &PenaltyParams) -> (Finished<N>, [u8; N]) {
+    let (s, scale, iters) = newton_lanes(batch, prm);
+    (finish_lanes(batch, s, scale, prm), iters)
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-unsafe fn newton_batch_avx512<const N: usize>(
-    b: &Batch<N>,
-    p: &PenaltyParams,
-) -> ([[f64; N]; 4], [u8; N]) {
-    newton_batch(b, p)
+unsafe fn kernel_avx512<const N: usize>(b: &Batch<N>, p: &PenaltyParams) -> (Finished<N>, [u8; N]) {
+    kernel(b, p)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn newton_batch_avx2<const N: usize>(
-    b: &Batch<N>,
-    p: &PenaltyParams,
-) -> ([[f64; N]; 4], [u8; N]) {
-    newton_batch(b, p)
+unsafe fn kernel_avx2<const N: usize>(b: &Batch<N>, p: &PenaltyParams) -> (Finished<N>, [u8; N]) {
+    kernel(b, p)
 }
 
-/// Instruction sets the kernel can run on, best first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Isa {
-    Avx512,
-    Avx2,
-    /// Whatever the build's baseline target has (SSE2 on x86_64).
-    Baseline,
-}
-
-impl Isa {
-    /// The best instruction set this CPU supports.
-    pub fn detect() -> Isa {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("avx512dq")
-                && std::is_x86_feature_detected!("avx512vl")
-            {
-                return Isa::Avx512;
-            }
-            if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-                return Isa::Avx2;
-            }
-        }
-        Isa::Baseline
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Isa::Avx512 => "avx512",
-            Isa::Avx2 => "avx2",
-            Isa::Baseline => "baseline",
-        }
-    }
-}
-
-fn newton_dispatch<const N: usize>(
-    b: &Batch<N>,
-    p: &PenaltyParams,
-    isa: Isa,
-) -> ([[f64; N]; 4], [u8; N]) {
+fn kernel_on<const N: usize>(b: &Batch<N>, p: &PenaltyParams, isa: Isa) -> (Finished<N>, [u8; N]) {
     match isa {
-        // SAFETY: `Isa::detect` checked these features on this CPU; the caller
-        // may pass a lower Isa but never a higher one (see `penalty_batch`).
+        // SAFETY: `isa` comes from `Isa::available`, so this CPU has the features.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => unsafe { newton_batch_avx512(b, p) },
+        Isa::Avx512 => unsafe { kernel_avx512(b, p) },
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 => unsafe { newton_batch_avx2(b, p) },
-        _ => newton_batch(b, p),
+        Isa::Avx2 => unsafe { kernel_avx2(b, p) },
+        _ => kernel(b, p),
     }
 }
 
 /// Runs the penalty kernel on up to `N` pairs (one SIMD batch) and writes the
-/// answers and per-pair statistics.
+/// answers and per-pair statistics. `isa` must be available on this CPU.
 fn penalty_batch_n<const N: usize>(
     pairs: &[(Triangle, Triangle)],
     prm: &PenaltyParams,
@@ -303,73 +223,20 @@ fn penalty_batch_n<const N: usize>(
     stats: &mut [PenaltyStats],
 ) {
     let batch = Batch::<N>::pack(pairs);
-    let (s, iters) = newton_dispatch(&batch, prm, isa);
-    for (lane, (a, b)) in pairs.iter().enumerate() {
-        let params = [s[0][lane], s[1][lane], s[2][lane], s[3][lane]];
-        let (closest, converged) = answer_from_params(a, b, params, prm);
-        out[lane] = closest;
+    let (f, iters) = kernel_on(&batch, prm, isa);
+    for (lane, (a, _)) in pairs.iter().enumerate() {
+        let o = a[0];
+        out[lane] = Closest {
+            distance: f.distance.0[lane],
+            p: DVec3::new(f.p.0[0].0[lane], f.p.0[1].0[lane], f.p.0[2].0[lane]) + o,
+            q: DVec3::new(f.q.0[0].0[lane], f.q.0[1].0[lane], f.q.0[2].0[lane]) + o,
+            solver: Solver::Penalty,
+        };
         stats[lane] = PenaltyStats {
-            converged,
+            converged: f.certified.0[lane],
             iterations: iters[lane],
         };
     }
-}
-
-/// From Newton's parameters to closest points, a distance and a verdict.
-fn answer_from_params(
-    a: &Triangle,
-    b: &Triangle,
-    s: Params4,
-    prm: &PenaltyParams,
-) -> (Closest, bool) {
-    let o = a[0];
-    let ta = [DVec3::ZERO, a[1] - o, a[2] - o];
-    let tb = [b[0] - o, b[1] - o, b[2] - o];
-    // Newton cannot produce NaN from finite input with delta > 0, but a
-    // degenerate pair (all vertices equal) must not turn into NaN points.
-    let s = if s.iter().all(|x| x.is_finite()) {
-        s
-    } else {
-        [1.0 / 3.0; 4]
-    };
-    let (p, q) = if prm.exact_finish {
-        finish_on_features(&ta, &tb, s)
-    } else {
-        (
-            point_at(&ta, clamp_simplex(s[0], s[1])),
-            point_at(&tb, clamp_simplex(s[2], s[3])),
-        )
-    };
-    let l = pair_scale(&ta, &tb);
-    let bound = certified_error_bound(&ta, &tb, p, q);
-    let converged = bound.is_finite() && bound <= prm.tol * l;
-    let distance = (p - q).length();
-    let closest = Closest {
-        distance: if distance.is_finite() {
-            distance
-        } else {
-            f64::NAN
-        },
-        p: p + o,
-        q: q + o,
-        solver: Solver::Penalty,
-    };
-    (closest, converged && distance.is_finite())
-}
-
-/// Projects barycentric parameters onto the simplex a, b >= 0, a + b <= 1.
-pub(crate) fn clamp_simplex(a: f64, b: f64) -> (f64, f64) {
-    let (a, b) = (a.max(0.0), b.max(0.0));
-    let sum = a + b;
-    if sum > 1.0 {
-        (a / sum, b / sum)
-    } else {
-        (a, b)
-    }
-}
-
-pub(crate) fn point_at(t: &Triangle, (a, b): (f64, f64)) -> DVec3 {
-    t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b
 }
 
 /// Computes the penalty answer for each pair, in batches of `batch` pairs
@@ -396,7 +263,7 @@ pub fn penalty_many_on(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) -> Result<(), UnsupportedBatch> {
-    let isa = lower_to_available(isa);
+    let isa = isa.available();
     assert_eq!(pairs.len(), out.len());
     assert_eq!(pairs.len(), stats.len());
     macro_rules! run {
@@ -421,20 +288,6 @@ pub fn penalty_many_on(
         _ => return Err(UnsupportedBatch(batch)),
     }
     Ok(())
-}
-
-fn lower_to_available(isa: Isa) -> Isa {
-    let have = Isa::detect();
-    let rank = |i: Isa| match i {
-        Isa::Avx512 => 2,
-        Isa::Avx2 => 1,
-        Isa::Baseline => 0,
-    };
-    if rank(isa) > rank(have) {
-        have
-    } else {
-        isa
-    }
 }
 
 /// Penalty on one pair with scalar code: the reference the SIMD speed-up is

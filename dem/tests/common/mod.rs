@@ -1,6 +1,9 @@
 //! Shared by the integration tests: the hard cases of ../shared/cases.
 #![allow(dead_code)]
 
+mod exact;
+pub use exact::exact_offset_from_triangle;
+
 use dem::distance::Triangle;
 use glam::DVec3;
 use std::path::PathBuf;
@@ -80,6 +83,18 @@ pub fn offset_from_triangle(p: DVec3, t: &Triangle) -> f64 {
         })
         .fold(f64::INFINITY, f64::min);
     face.min(edges)
+}
+
+/// Whether `p` lies within `tol` of triangle `t`: the fast check in doubles,
+/// confirmed exactly when it fails (the projection on a sliver is only
+/// accurate to rounding over the sine of its smallest angle).
+pub fn within_triangle(p: DVec3, t: &Triangle, tol: f64) -> (bool, f64) {
+    let off = offset_from_triangle(p, t);
+    if off <= tol {
+        return (true, off);
+    }
+    let exact = exact_offset_from_triangle(p, t);
+    (exact <= tol, exact)
 }
 
 /// How far a returned closest point may sit from its triangle.
