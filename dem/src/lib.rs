@@ -5,8 +5,11 @@
 //! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
 //! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
 //!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
+//! - [`busy_workers`]: keeps the thread pool polling through a run of short
+//!   parallel sections.
 
 pub mod body;
+pub mod busy_workers;
 pub mod contact;
 pub mod distance;
 pub mod effects;

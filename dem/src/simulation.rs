@@ -9,6 +9,9 @@ use crate::scene::Scene;
 use crate::world::World;
 use rayon::prelude::*;
 
+/// Bodies per parallel task of the integration.
+const INTEGRATION_GRAIN: usize = 32;
+
 /// A running simulation.
 pub struct Simulation {
     pub world: World,
@@ -80,7 +83,7 @@ impl Simulation {
             .bodies
             .par_iter_mut()
             .enumerate()
-            .with_min_len(64)
+            .with_min_len(INTEGRATION_GRAIN)
             .for_each(|(i, b)| {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
                 drift(b, h, rot);
@@ -91,7 +94,7 @@ impl Simulation {
             .bodies
             .par_iter_mut()
             .enumerate()
-            .with_min_len(64)
+            .with_min_len(INTEGRATION_GRAIN)
             .for_each(|(i, b)| {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
             });

@@ -17,9 +17,12 @@
 //!    sum (a vertex shared by several triangles, say) are merged, keeping the
 //!    deepest; the survivors share the pair's stiffness (see effects::contact).
 
+mod geometry;
+
 use crate::body::Body;
 use crate::distance::{distance_many, Closest, Options, PenaltyStats, Solver, Triangle};
 use crate::world::World;
+use geometry::{BodyGeometry, Bounds};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -50,39 +53,13 @@ pub struct DetectionStats {
     pub deep_contacts: u64,
 }
 
-/// Axis-aligned box.
-#[derive(Debug, Clone, Copy)]
-struct Bounds {
-    lo: DVec3,
-    hi: DVec3,
-}
-
-impl Bounds {
-    fn of(t: &Triangle, pad: f64) -> Bounds {
-        Bounds {
-            lo: t[0].min(t[1]).min(t[2]) - DVec3::splat(pad),
-            hi: t[0].max(t[1]).max(t[2]) + DVec3::splat(pad),
-        }
-    }
-    fn overlaps(&self, o: &Bounds) -> bool {
-        self.lo.cmple(o.hi).all() && o.lo.cmple(self.hi).all()
-    }
-    fn union(&self, o: &Bounds) -> Bounds {
-        Bounds {
-            lo: self.lo.min(o.lo),
-            hi: self.hi.max(o.hi),
-        }
-    }
-}
+/// Bodies per parallel task of the geometry update.
+const GEOMETRY_GRAIN: usize = 16;
 
 /// Contact detector with its reusable buffers.
 #[derive(Debug, Default)]
 pub struct Detector {
-    triangles: Vec<Vec<Triangle>>,
-    /// Unit normal and offset (n · v0) of every world triangle; zero normal if degenerate.
-    planes: Vec<Vec<(DVec3, f64)>>,
-    /// Box of every world triangle, inflated by its body's halo.
-    bounds: Vec<Vec<Bounds>>,
+    geometry: Vec<BodyGeometry>,
     pairs: Vec<(Triangle, Triangle)>,
     owners: Vec<(u32, u32, u32)>,
     out: Vec<Closest>,
@@ -99,66 +76,29 @@ impl Detector {
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
         let bodies = &world.bodies;
-        // World-space triangles of every body.
-        self.triangles.resize(bodies.len(), Vec::new());
-        self.triangles
+        // World-space triangles, planes and boxes of every body that moved.
+        self.geometry.resize(bodies.len(), BodyGeometry::default());
+        self.geometry
             .par_iter_mut()
             .zip(bodies.par_iter())
-            .for_each(|(tris, b)| {
-                let mesh = &world.shapes[b.shape];
-                tris.clear();
-                tris.extend(
-                    mesh.triangles
-                        .iter()
-                        .map(|t| t.map(|i| b.to_world(mesh.vertices[i as usize]))),
-                );
-            });
-        self.planes.resize(bodies.len(), Vec::new());
-        self.planes
-            .par_iter_mut()
-            .zip(self.triangles.par_iter())
-            .for_each(|(planes, tris)| {
-                planes.clear();
-                planes.extend(tris.iter().map(|t| {
-                    let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or_zero();
-                    (n, n.dot(t[0]))
-                }));
-            });
-        self.bounds.resize(bodies.len(), Vec::new());
-        self.bounds
-            .par_iter_mut()
-            .zip(self.triangles.par_iter())
             .zip(halos.par_iter())
-            .for_each(|((bounds, tris), &h)| {
-                bounds.clear();
-                bounds.extend(tris.iter().map(|t| Bounds::of(t, h)));
-            });
-        let boxes: Vec<Bounds> = self
-            .bounds
-            .iter()
-            .map(|bs| {
-                bs.iter()
-                    .copied()
-                    .reduce(|a, b| a.union(&b))
-                    .unwrap_or(Bounds {
-                        lo: DVec3::ZERO,
-                        hi: DVec3::ZERO,
-                    })
-            })
-            .collect();
+            .with_min_len(GEOMETRY_GRAIN)
+            .for_each(|((g, b), &h)| g.update(b, &world.shapes[b.shape], h));
+        let geometry = &self.geometry;
+        let boxes: Vec<Bounds> = geometry.iter().map(|g| g.bbox).collect();
         let body_pairs = sweep(&boxes, bodies);
 
         // Triangle pairs of every body pair, culled by inflated boxes and face planes.
-        let (triangles, planes, bounds) = (&self.triangles, &self.planes, &self.bounds);
         let owners: Vec<(u32, u32, u32)> = body_pairs
             .par_iter()
             .enumerate()
             .map_init(Vec::new, |ha: &mut Vec<(u32, Bounds)>, (k, &(a, b))| {
-                let (ta, tb) = (&triangles[a], &triangles[b]);
+                let (ga, gb) = (&geometry[a], &geometry[b]);
+                let (ta, tb) = (&ga.triangles, &gb.triangles);
                 let reach = halos[a] + halos[b];
                 ha.clear();
                 ha.extend(
-                    bounds[a]
+                    ga.bounds
                         .iter()
                         .enumerate()
                         .filter(|(_, bx)| bx.overlaps(&boxes[b]))
@@ -169,16 +109,16 @@ impl Detector {
                     return found;
                 }
                 for (j, t) in tb.iter().enumerate() {
-                    let bj = bounds[b][j];
+                    let bj = gb.bounds[j];
                     if !bj.overlaps(&boxes[a]) {
                         continue;
                     }
-                    let pb = planes[b][j];
+                    let pb = gb.planes[j];
                     for &(i, bi) in ha.iter() {
                         let ti = &ta[i as usize];
                         if bi.overlaps(&bj)
                             && !plane_separates(pb, ti, reach)
-                            && !plane_separates(planes[a][i as usize], t, reach)
+                            && !plane_separates(ga.planes[i as usize], t, reach)
                         {
                             found.push((k as u32, i, j as u32));
                         }
@@ -191,7 +131,10 @@ impl Detector {
         self.pairs.clear();
         self.pairs.par_extend(owners.par_iter().map(|&(k, i, j)| {
             let (a, b) = body_pairs[k as usize];
-            (triangles[a][i as usize], triangles[b][j as usize])
+            (
+                geometry[a].triangles[i as usize],
+                geometry[b].triangles[j as usize],
+            )
         }));
         self.owners = owners;
         let n = self.pairs.len();
@@ -225,7 +168,7 @@ impl Detector {
                     d / len
                 } else {
                     deep += 1;
-                    outward_normal(&self.triangles[b][j as usize], &bodies[b])
+                    outward_normal(&self.geometry[b].triangles[j as usize], &bodies[b])
                 };
                 let c = Contact {
                     a,
