@@ -89,6 +89,36 @@ mod tests {
         assert!(bound >= err - 1e-15, "bound {bound} < error {err}");
     }
 
+    /// The bound is rigorous: for arbitrary points P of A and Q of B it is at
+    /// least their excess over the exact distance (brute force as reference).
+    #[test]
+    fn bound_covers_the_error_of_any_pair_of_points() {
+        let pairs = crate::distance::random_unit_pairs(500, 3);
+        let mut w = 0.1f64;
+        let mut next = || {
+            w = (w * 7919.0 + 0.123).fract();
+            w
+        };
+        for (a, b) in &pairs {
+            let d = crate::distance::distance_triangle_triangle(a, b).distance;
+            for _ in 0..10 {
+                let at = |t: &Triangle, x: f64, y: f64| {
+                    let (x, y) = if x + y > 1.0 {
+                        (1.0 - x, 1.0 - y)
+                    } else {
+                        (x, y)
+                    };
+                    t[0] + (t[1] - t[0]) * x + (t[2] - t[0]) * y
+                };
+                let p = at(a, next(), next());
+                let q = at(b, next(), next());
+                let excess = (p - q).length() - d;
+                let bound = certified_error_bound(a, b, p, q);
+                assert!(bound >= excess - 1e-14, "bound {bound} < excess {excess}");
+            }
+        }
+    }
+
     #[test]
     fn a_vertex_very_near_a_face_is_certified_at_any_distance() {
         // P - Q is computed with rounding of order 1e-16; at distance 1e-12 its
