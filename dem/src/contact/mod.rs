@@ -1,6 +1,14 @@
 //! Contact detection between bodies made of triangles.
 //!
-//! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos.
+//! The detector works on a [`TriangleSet`]: the triangles this process owns
+//! and, split across ranks, ghost copies of triangles owned elsewhere. It
+//! finds triangle contacts in two phases ([`Phase`]): local-local pairs first
+//! (they need nothing from other ranks, so ghosts can be exchanged meanwhile),
+//! then local-ghost pairs. On one node every triangle is owned and only the
+//! first phase has work. Per phase:
+//!
+//! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
+//!    ([`broad_phase`]).
 //! 2. Triangle culling: only triangles whose inflated boxes overlap the other
 //!    body's box, only pairs of those whose inflated boxes overlap, and only
 //!    pairs that neither triangle's plane separates by more than the halo sum
@@ -12,17 +20,23 @@
 //!    halo_a + halo_b - d, the contact point the midpoint of the closest points
 //!    P, Q and the normal (P - Q)/|P - Q|. When P = Q (triangles crossing, a
 //!    penetration deeper than the halos) the normal is the outward face normal
-//!    of b's triangle.
-//! 5. Contacts of one body pair whose points coincide to within half the halo
-//!    sum (a vertex shared by several triangles, say) are merged, keeping the
-//!    deepest; the survivors share the pair's stiffness (see effects::contact).
+//!    of b's triangle (meshes are validated outward-facing).
+//!
+//! Then, per body pair ([`body_contacts`]): triangle contacts whose points
+//! coincide to within half the halo sum (a vertex shared by several
+//! triangles, say) are merged, keeping the deepest; the survivors share the
+//! pair's stiffness (see effects::contact). Triangle contacts are sorted
+//! first, so the result does not depend on how triangles were split.
 
-mod geometry;
+mod bounds;
+mod broad_phase;
+mod triangle_set;
 
-use crate::body::Body;
+pub use bounds::Bounds;
+pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
+
 use crate::distance::{distance_many, Closest, Options, PenaltyStats, Solver, Triangle};
 use crate::world::World;
-use geometry::{BodyGeometry, Bounds};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -41,6 +55,27 @@ pub struct Contact {
     pub share: u32,
 }
 
+/// A triangle pair within contact reach, before merging per body pair.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleContact {
+    /// Triangle `a` of the lower-numbered body, `b` of the other.
+    pub a: TriangleKey,
+    pub b: TriangleKey,
+    pub closest: Closest,
+    /// Outward unit normal of b's triangle: the contact normal when P = Q.
+    pub face_normal_b: DVec3,
+}
+
+/// Which triangle pairs a detection pass examines.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Both triangles owned here.
+    LocalLocal,
+    /// An owned triangle of the lower-numbered body with a ghost of the other
+    /// (the converse pairs belong to the rank owning the ghost).
+    LocalGhost,
+}
+
 /// Counts of one detection pass.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DetectionStats {
@@ -53,21 +88,30 @@ pub struct DetectionStats {
     pub deep_contacts: u64,
 }
 
-/// Bodies per parallel task of the geometry update.
-const GEOMETRY_GRAIN: usize = 16;
+impl std::ops::AddAssign for DetectionStats {
+    fn add_assign(&mut self, o: DetectionStats) {
+        self.body_pairs += o.body_pairs;
+        self.triangle_pairs += o.triangle_pairs;
+        self.fallback_pairs += o.fallback_pairs;
+        self.contacts += o.contacts;
+        self.deep_contacts += o.deep_contacts;
+    }
+}
 
 /// Contact detector with its reusable buffers.
 #[derive(Debug, Default)]
 pub struct Detector {
-    geometry: Vec<BodyGeometry>,
+    /// The one-node set, following the world.
+    set: TriangleSet,
     pairs: Vec<(Triangle, Triangle)>,
-    owners: Vec<(u32, u32, u32)>,
+    owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
     stats: Vec<PenaltyStats>,
+    found: Vec<TriangleContact>,
 }
 
 impl Detector {
-    /// Finds all contacts; `halos[i]` is body i's contact halo.
+    /// All contacts of the world on one node; `halos[i]` is body i's contact halo.
     pub fn detect(
         &mut self,
         world: &World,
@@ -75,52 +119,66 @@ impl Detector {
         opts: &Options,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
-        let bodies = &world.bodies;
-        // World-space triangles, planes and boxes of every body that moved.
-        self.geometry.resize(bodies.len(), BodyGeometry::default());
-        self.geometry
-            .par_iter_mut()
-            .zip(bodies.par_iter())
-            .zip(halos.par_iter())
-            .with_min_len(GEOMETRY_GRAIN)
-            .for_each(|((g, b), &h)| g.update(b, &world.shapes[b.shape], h));
-        let geometry = &self.geometry;
-        let boxes: Vec<Bounds> = geometry.iter().map(|g| g.bbox).collect();
-        let body_pairs = sweep(&boxes, bodies);
+        let mut set = std::mem::take(&mut self.set);
+        set.update_from_world(world, halos);
+        let mut found = std::mem::take(&mut self.found);
+        found.clear();
+        let mut stats =
+            self.triangle_contacts(world, &set, halos, opts, Phase::LocalLocal, &mut found);
+        (stats.contacts, stats.deep_contacts) = body_contacts(&mut found, halos, contacts);
+        self.set = set;
+        self.found = found;
+        stats
+    }
+
+    /// Appends to `found` the triangle contacts of one phase on `set`, in no
+    /// particular order ([`body_contacts`] sorts). Returns the pass's counts
+    /// (contacts counted after merging by [`body_contacts`], so 0 here).
+    pub fn triangle_contacts(
+        &mut self,
+        world: &World,
+        set: &TriangleSet,
+        halos: &[f64],
+        opts: &Options,
+        phase: Phase,
+        found: &mut Vec<TriangleContact>,
+    ) -> DetectionStats {
+        let groups = set.groups();
+        let body_pairs = broad_phase::body_pairs(set, &world.bodies, phase);
 
         // Triangle pairs of every body pair, culled by inflated boxes and face planes.
-        let owners: Vec<(u32, u32, u32)> = body_pairs
+        let owners: Vec<(u32, u32)> = body_pairs
             .par_iter()
-            .enumerate()
-            .map_init(Vec::new, |ha: &mut Vec<(u32, Bounds)>, (k, &(a, b))| {
-                let (ga, gb) = (&geometry[a], &geometry[b]);
-                let (ta, tb) = (&ga.triangles, &gb.triangles);
-                let reach = halos[a] + halos[b];
+            .map_init(Vec::new, |ha: &mut Vec<(u32, Bounds)>, &(g, h)| {
+                let (ga, gb) = (&groups[g], &groups[h]);
+                let (a_part, a_box) = (ga.owned.clone(), ga.owned_box);
+                let (b_part, b_box) = match phase {
+                    Phase::LocalLocal => (gb.owned.clone(), gb.owned_box),
+                    Phase::LocalGhost => (gb.ghost.clone(), gb.ghost_box),
+                };
+                let reach = halos[ga.body as usize] + halos[gb.body as usize];
                 ha.clear();
                 ha.extend(
-                    ga.bounds
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, bx)| bx.overlaps(&boxes[b]))
-                        .map(|(i, bx)| (i as u32, *bx)),
+                    a_part
+                        .map(|i| (i as u32, set.triangle(i).bounds))
+                        .filter(|(_, bx)| bx.overlaps(&b_box)),
                 );
                 let mut found = Vec::new();
                 if ha.is_empty() {
                     return found;
                 }
-                for (j, t) in tb.iter().enumerate() {
-                    let bj = gb.bounds[j];
-                    if !bj.overlaps(&boxes[a]) {
+                for j in b_part {
+                    let tj = set.triangle(j);
+                    if !tj.bounds.overlaps(&a_box) {
                         continue;
                     }
-                    let pb = gb.planes[j];
                     for &(i, bi) in ha.iter() {
-                        let ti = &ta[i as usize];
-                        if bi.overlaps(&bj)
-                            && !plane_separates(pb, ti, reach)
-                            && !plane_separates(ga.planes[i as usize], t, reach)
+                        let ti = set.triangle(i as usize);
+                        if bi.overlaps(&tj.bounds)
+                            && !plane_separates(tj.plane, &ti.vertices, reach)
+                            && !plane_separates(ti.plane, &tj.vertices, reach)
                         {
-                            found.push((k as u32, i, j as u32));
+                            found.push((i, j as u32));
                         }
                     }
                 }
@@ -129,11 +187,10 @@ impl Detector {
             .flatten_iter()
             .collect();
         self.pairs.clear();
-        self.pairs.par_extend(owners.par_iter().map(|&(k, i, j)| {
-            let (a, b) = body_pairs[k as usize];
+        self.pairs.par_extend(owners.par_iter().map(|&(i, j)| {
             (
-                geometry[a].triangles[i as usize],
-                geometry[b].triangles[j as usize],
+                set.triangle(i as usize).vertices,
+                set.triangle(j as usize).vertices,
             )
         }));
         self.owners = owners;
@@ -143,60 +200,73 @@ impl Detector {
         let counts = distance_many(&self.pairs, opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
 
-        // Contacts, grouped by body pair (owners are in body-pair order).
-        contacts.clear();
-        let mut deep = 0u64;
-        let mut start = 0;
-        while start < n {
-            let k = self.owners[start].0;
-            let mut end = start;
-            while end < n && self.owners[end].0 == k {
-                end += 1;
+        for (&(i, j), r) in self.owners.iter().zip(&self.out) {
+            let (ka, kb) = (set.key(i as usize), set.key(j as usize));
+            if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
+                let n = set.triangle(j as usize).plane.0;
+                found.push(TriangleContact {
+                    a: ka,
+                    b: kb,
+                    closest: *r,
+                    face_normal_b: if n == DVec3::ZERO { DVec3::Z } else { n },
+                });
             }
-            let (a, b) = body_pairs[k as usize];
-            let reach = halos[a] + halos[b];
-            let first = contacts.len();
-            for idx in start..end {
-                let r = &self.out[idx];
-                if r.distance >= reach {
-                    continue;
-                }
-                let (_, i, j) = self.owners[idx];
-                let d = r.p - r.q;
-                let len = d.length();
-                let normal = if len > 0.0 && len.is_finite() {
-                    d / len
-                } else {
-                    deep += 1;
-                    outward_normal(&self.geometry[b].triangles[j as usize], &bodies[b])
-                };
-                let c = Contact {
-                    a,
-                    b,
-                    tri_a: i,
-                    tri_b: j,
-                    point: (r.p + r.q) * 0.5,
-                    normal,
-                    depth: reach - r.distance,
-                    share: 1,
-                };
-                merge_into(&mut contacts[first..], c, 0.5 * reach)
-                    .map_or_else(|| contacts.push(c), |_| ());
-            }
-            let share = (contacts.len() - first) as u32;
-            for c in &mut contacts[first..] {
-                c.share = share;
-            }
-            start = end;
         }
         DetectionStats {
             body_pairs: body_pairs.len() as u64,
             triangle_pairs: n as u64,
             fallback_pairs: counts.fallback_pairs as u64,
-            contacts: contacts.len() as u64,
-            deep_contacts: deep,
+            contacts: 0,
+            deep_contacts: 0,
         }
     }
+}
+
+/// Body contacts from triangle contacts (sorted in place by body pair, then
+/// by b's triangle, then a's): contacts at (nearly) the same point merged,
+/// each body pair's contacts told how many share it. Returns the number of
+/// contacts and of deep ones (triangles crossing).
+pub fn body_contacts(
+    found: &mut [TriangleContact],
+    halos: &[f64],
+    contacts: &mut Vec<Contact>,
+) -> (u64, u64) {
+    found.sort_unstable_by_key(|t| (t.a.body, t.b.body, t.b.index, t.a.index));
+    contacts.clear();
+    let mut deep = 0u64;
+    for group in found.chunk_by(|x, y| (x.a.body, x.b.body) == (y.a.body, y.b.body)) {
+        let (a, b) = (group[0].a.body as usize, group[0].b.body as usize);
+        let reach = halos[a] + halos[b];
+        let first = contacts.len();
+        for t in group {
+            let r = &t.closest;
+            let d = r.p - r.q;
+            let len = d.length();
+            let normal = if len > 0.0 && len.is_finite() {
+                d / len
+            } else {
+                deep += 1;
+                t.face_normal_b
+            };
+            let c = Contact {
+                a,
+                b,
+                tri_a: t.a.index,
+                tri_b: t.b.index,
+                point: (r.p + r.q) * 0.5,
+                normal,
+                depth: reach - r.distance,
+                share: 1,
+            };
+            merge_into(&mut contacts[first..], c, 0.5 * reach)
+                .map_or_else(|| contacts.push(c), |_| ());
+        }
+        let share = (contacts.len() - first) as u32;
+        for c in &mut contacts[first..] {
+            c.share = share;
+        }
+    }
+    (contacts.len() as u64, deep)
 }
 
 /// Whether the plane (n, d) of one triangle has all of `t` on one side, farther
@@ -218,39 +288,6 @@ fn merge_into(existing: &mut [Contact], c: Contact, tol: f64) -> Option<()> {
         *m = c;
     }
     Some(())
-}
-
-/// Outward normal of a world-space triangle of body `b` (its mesh is outward-facing).
-fn outward_normal(t: &Triangle, b: &Body) -> DVec3 {
-    let n = (t[1] - t[0]).cross(t[2] - t[0]);
-    let n = n.try_normalize().unwrap_or(DVec3::Z);
-    // Static obstacles keep their own frame; the centroid test is only a guard.
-    let c = (t[0] + t[1] + t[2]) / 3.0;
-    if b.is_static() || n.dot(c - b.x) >= 0.0 {
-        n
-    } else {
-        -n
-    }
-}
-
-/// Sort and sweep along x: pairs of overlapping boxes with at least one dynamic body.
-fn sweep(boxes: &[Bounds], bodies: &[Body]) -> Vec<(usize, usize)> {
-    let mut order: Vec<usize> = (0..boxes.len()).collect();
-    order.sort_by(|&i, &j| boxes[i].lo.x.total_cmp(&boxes[j].lo.x));
-    let mut pairs = Vec::new();
-    for (k, &i) in order.iter().enumerate() {
-        for &j in &order[k + 1..] {
-            if boxes[j].lo.x > boxes[i].hi.x {
-                break;
-            }
-            if (bodies[i].is_static() && bodies[j].is_static()) || !boxes[i].overlaps(&boxes[j]) {
-                continue;
-            }
-            pairs.push((i.min(j), i.max(j)));
-        }
-    }
-    pairs.sort_unstable();
-    pairs
 }
 
 fn placeholder() -> Closest {

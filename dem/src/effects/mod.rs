@@ -61,11 +61,7 @@ pub struct StepStats {
 
 impl std::ops::AddAssign for StepStats {
     fn add_assign(&mut self, o: StepStats) {
-        self.detection.body_pairs += o.detection.body_pairs;
-        self.detection.triangle_pairs += o.detection.triangle_pairs;
-        self.detection.fallback_pairs += o.detection.fallback_pairs;
-        self.detection.contacts += o.detection.contacts;
-        self.detection.deep_contacts += o.detection.deep_contacts;
+        self.detection += o.detection;
         self.normal_evaluations += o.normal_evaluations;
         self.tangential_evaluations += o.tangential_evaluations;
     }

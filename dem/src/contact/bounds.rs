@@ -1,0 +1,48 @@
+//! Axis-aligned boxes: the currency of the broad phase and of triangle culling.
+
+use crate::distance::Triangle;
+use glam::DVec3;
+
+/// Axis-aligned box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+impl Default for Bounds {
+    fn default() -> Self {
+        Bounds::EMPTY
+    }
+}
+
+impl Bounds {
+    /// The box that contains nothing and is the identity of `union`.
+    pub const EMPTY: Bounds = Bounds {
+        lo: DVec3::INFINITY,
+        hi: DVec3::NEG_INFINITY,
+    };
+
+    /// Box of a triangle, inflated by `pad` on every side.
+    pub fn of(t: &Triangle, pad: f64) -> Bounds {
+        Bounds {
+            lo: t[0].min(t[1]).min(t[2]) - DVec3::splat(pad),
+            hi: t[0].max(t[1]).max(t[2]) + DVec3::splat(pad),
+        }
+    }
+
+    pub fn overlaps(&self, o: &Bounds) -> bool {
+        self.lo.cmple(o.hi).all() && o.lo.cmple(self.hi).all()
+    }
+
+    pub fn union(&self, o: &Bounds) -> Bounds {
+        Bounds {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.lo.cmpgt(self.hi).any()
+    }
+}

@@ -1,0 +1,309 @@
+//! The triangles one contact detector works on, split into the ones this
+//! process owns and ghosts: copies of triangles owned elsewhere that lie within
+//! contact reach of owned ones.
+//!
+//! On one node every triangle is owned and there are no ghosts. Split across
+//! ranks, each rank holds its owned triangles and, once the exchange is done,
+//! its ghosts; the detector then finds local-local pairs (which need nothing
+//! from other ranks, so they can run while ghosts are in flight) and
+//! local-ghost pairs (see [`super::Phase`]).
+//!
+//! Triangles are stored owned first, then ghosts, each part sorted by
+//! [`TriangleKey`], so a body's triangles are contiguous within each part and
+//! every body present has one [`BodyGroup`].
+
+use super::bounds::Bounds;
+use crate::distance::Triangle;
+use crate::world::World;
+use glam::{DMat3, DQuat, DVec3};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// A triangle's global name: its body and its index in the body's mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct TriangleKey {
+    pub body: u32,
+    pub index: u32,
+}
+
+/// One triangle in world space, with what culling needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SetTriangle {
+    pub vertices: Triangle,
+    /// Unit normal (outward for a body's validated mesh) and offset n · v0;
+    /// zero normal for a degenerate triangle.
+    pub plane: (DVec3, f64),
+    /// Box inflated by the body's halo.
+    pub bounds: Bounds,
+}
+
+impl SetTriangle {
+    fn new(vertices: Triangle, halo: f64) -> SetTriangle {
+        let n = (vertices[1] - vertices[0])
+            .cross(vertices[2] - vertices[0])
+            .normalize_or_zero();
+        SetTriangle {
+            vertices,
+            plane: (n, n.dot(vertices[0])),
+            bounds: Bounds::of(&vertices, halo),
+        }
+    }
+}
+
+/// The triangles of one body present in the set.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BodyGroup {
+    pub body: u32,
+    pub owned: Range<usize>,
+    pub ghost: Range<usize>,
+    /// Union of the inflated boxes of the owned / ghost triangles.
+    pub owned_box: Bounds,
+    pub ghost_box: Bounds,
+}
+
+/// Owned triangles, then ghost triangles, with one group per body.
+#[derive(Debug, Clone, Default)]
+pub struct TriangleSet {
+    keys: Vec<TriangleKey>,
+    triangles: Vec<SetTriangle>,
+    owned: usize,
+    groups: Vec<BodyGroup>,
+    /// Pose and halo each body's triangles were last computed for, when the
+    /// set mirrors the whole world (`update_from_world`): static obstacles,
+    /// often the largest meshes, are computed once.
+    poses: Vec<Option<(DVec3, DQuat, f64)>>,
+}
+
+/// Bodies per parallel task when the set follows the world.
+const UPDATE_GRAIN: usize = 16;
+
+impl TriangleSet {
+    /// Every triangle of every body, owned: the one-node set. Only bodies that
+    /// moved (or whose halo changed) since the last call are recomputed.
+    pub fn update_from_world(&mut self, world: &World, halos: &[f64]) {
+        let bodies = &world.bodies;
+        let sizes = || bodies.iter().map(|b| world.shapes[b.shape].triangles.len());
+        let layout_matches = self.ghosts().is_empty()
+            && self.groups.len() == bodies.len()
+            && self
+                .groups
+                .iter()
+                .zip(sizes())
+                .enumerate()
+                .all(|(i, (g, n))| g.body as usize == i && g.owned.len() == n);
+        if !layout_matches {
+            self.keys.clear();
+            self.groups.clear();
+            for (i, n) in sizes().enumerate() {
+                let start = self.keys.len();
+                self.keys.extend((0..n as u32).map(|index| TriangleKey {
+                    body: i as u32,
+                    index,
+                }));
+                self.groups.push(BodyGroup {
+                    body: i as u32,
+                    owned: start..self.keys.len(),
+                    ghost: 0..0,
+                    owned_box: Bounds::EMPTY,
+                    ghost_box: Bounds::EMPTY,
+                });
+            }
+            let end = self.keys.len();
+            for g in &mut self.groups {
+                g.ghost = end..end;
+            }
+            self.owned = end;
+            let zero = SetTriangle::new([DVec3::ZERO; 3], 0.0);
+            self.triangles.clear();
+            self.triangles.resize(end, zero);
+            self.poses.clear();
+            self.poses.resize(bodies.len(), None);
+        }
+        // One mutable slice of triangles per body, updated in parallel.
+        let mut slices = Vec::with_capacity(bodies.len());
+        let mut rest = &mut self.triangles[..];
+        for g in &self.groups {
+            let (head, tail) = rest.split_at_mut(g.owned.len());
+            slices.push(head);
+            rest = tail;
+        }
+        slices
+            .into_par_iter()
+            .zip(self.groups.par_iter_mut())
+            .zip(self.poses.par_iter_mut())
+            .with_min_len(UPDATE_GRAIN)
+            .for_each_init(Vec::new, |vertices, ((tris, group), pose)| {
+                let i = group.body as usize;
+                let (body, halo) = (&bodies[i], halos[i]);
+                let key = (body.x, body.q, halo);
+                if *pose == Some(key) {
+                    return;
+                }
+                let mesh = &world.shapes[body.shape];
+                // Each vertex once, by the rotation matrix: a closed mesh has
+                // about half as many vertices as triangles, each triangle three.
+                let r = DMat3::from_quat(body.q);
+                vertices.clear();
+                vertices.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
+                let mut bbox = Bounds::EMPTY;
+                for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
+                    let v = [
+                        vertices[t[0] as usize],
+                        vertices[t[1] as usize],
+                        vertices[t[2] as usize],
+                    ];
+                    *slot = SetTriangle::new(v, halo);
+                    bbox = bbox.union(&slot.bounds);
+                }
+                group.owned_box = bbox;
+                *pose = Some(key);
+            });
+    }
+
+    /// A set of explicitly given owned triangles (one rank's share), without
+    /// ghosts. `halos` is indexed by body.
+    pub fn with_owned(owned: Vec<(TriangleKey, Triangle)>, halos: &[f64]) -> TriangleSet {
+        let mut set = TriangleSet::default();
+        set.replace(owned, Vec::new(), halos);
+        set
+    }
+
+    /// Replaces the ghosts (what arrived from other ranks), keeping the owned part.
+    pub fn set_ghosts(&mut self, ghosts: Vec<(TriangleKey, Triangle)>, halos: &[f64]) {
+        let owned = (0..self.owned)
+            .map(|i| (self.keys[i], self.triangles[i].vertices))
+            .collect();
+        self.replace(owned, ghosts, halos);
+    }
+
+    fn replace(
+        &mut self,
+        mut owned: Vec<(TriangleKey, Triangle)>,
+        mut ghosts: Vec<(TriangleKey, Triangle)>,
+        halos: &[f64],
+    ) {
+        owned.sort_by_key(|e| e.0);
+        ghosts.sort_by_key(|e| e.0);
+        self.owned = owned.len();
+        self.poses.clear();
+        self.keys.clear();
+        self.triangles.clear();
+        for (k, t) in owned.iter().chain(&ghosts) {
+            self.keys.push(*k);
+            self.triangles
+                .push(SetTriangle::new(*t, halos[k.body as usize]));
+        }
+        // Groups: merge the bodies of the two sorted parts.
+        self.groups.clear();
+        let runs = |range: Range<usize>, keys: &[TriangleKey]| {
+            let mut runs: Vec<(u32, Range<usize>)> = Vec::new();
+            for i in range {
+                match runs.last_mut() {
+                    Some((b, r)) if *b == keys[i].body => r.end = i + 1,
+                    _ => runs.push((keys[i].body, i..i + 1)),
+                }
+            }
+            runs
+        };
+        let n = self.keys.len();
+        let mut own = runs(0..self.owned, &self.keys).into_iter().peekable();
+        let mut gho = runs(self.owned..n, &self.keys).into_iter().peekable();
+        let empty_owned = self.owned..self.owned;
+        let empty_ghost = n..n;
+        loop {
+            let body = match (own.peek(), gho.peek()) {
+                (None, None) => break,
+                (Some(o), None) => o.0,
+                (None, Some(g)) => g.0,
+                (Some(o), Some(g)) => o.0.min(g.0),
+            };
+            let o = own
+                .next_if(|r| r.0 == body)
+                .map_or(empty_owned.clone(), |r| r.1);
+            let g = gho
+                .next_if(|r| r.0 == body)
+                .map_or(empty_ghost.clone(), |r| r.1);
+            let union = |r: &Range<usize>| {
+                self.triangles[r.clone()]
+                    .iter()
+                    .fold(Bounds::EMPTY, |b, t| b.union(&t.bounds))
+            };
+            self.groups.push(BodyGroup {
+                body,
+                owned_box: union(&o),
+                ghost_box: union(&g),
+                owned: o,
+                ghost: g,
+            });
+        }
+    }
+
+    /// Indices of the owned triangles.
+    pub fn owned(&self) -> Range<usize> {
+        0..self.owned
+    }
+
+    /// Indices of the ghost triangles.
+    pub fn ghosts(&self) -> Range<usize> {
+        self.owned..self.keys.len()
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+
+    pub fn key(&self, i: usize) -> TriangleKey {
+        self.keys[i]
+    }
+
+    pub fn triangle(&self, i: usize) -> &SetTriangle {
+        &self.triangles[i]
+    }
+
+    /// One group per body present, in body order.
+    pub fn groups(&self) -> &[BodyGroup] {
+        &self.groups
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri(x: f64) -> Triangle {
+        [
+            DVec3::new(x, 0.0, 0.0),
+            DVec3::new(x + 1.0, 0.0, 0.0),
+            DVec3::new(x, 1.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn groups_cover_owned_then_ghost_triangles_by_body() {
+        let k = |body, index| TriangleKey { body, index };
+        let owned = vec![
+            (k(2, 0), tri(2.0)),
+            (k(0, 1), tri(0.0)),
+            (k(0, 0), tri(0.0)),
+        ];
+        let mut set = TriangleSet::with_owned(owned, &[0.1, 0.1, 0.1, 0.1]);
+        set.set_ghosts(vec![(k(3, 5), tri(3.0)), (k(2, 1), tri(2.0))], &[0.1; 4]);
+        assert_eq!(set.owned(), 0..3);
+        assert_eq!(set.ghosts(), 3..5);
+        let keys: Vec<_> = (0..set.len()).map(|i| set.key(i)).collect();
+        assert_eq!(keys, vec![k(0, 0), k(0, 1), k(2, 0), k(2, 1), k(3, 5)]);
+        let g: Vec<_> = set
+            .groups()
+            .iter()
+            .map(|g| (g.body, g.owned.clone(), g.ghost.clone()))
+            .collect();
+        assert_eq!(g, vec![(0, 0..2, 5..5), (2, 2..3, 3..4), (3, 3..3, 4..5)]);
+        let b = &set.groups()[1];
+        assert_eq!(b.owned_box.lo, DVec3::new(1.9, -0.1, -0.1));
+        assert!(set.groups()[0].ghost_box.is_empty());
+    }
+}
