@@ -125,6 +125,13 @@ struct KernelSpec {
     fallback_failed_pairs: bool,
     #[serde(default)]
     dynamic_schedule: bool,
+    /// Body pairs per task of the dynamic schedule.
+    #[serde(default = "default_grain")]
+    grain: usize,
+}
+
+fn default_grain() -> usize {
+    Threading::default().grain
 }
 
 fn default_method() -> String {
@@ -548,6 +555,9 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                     ),
                 );
             }
+            if k.grain == 0 {
+                return ctx.err(span, "kernel.grain must be at least 1");
+            }
             Options {
                 method,
                 batch: k.batch,
@@ -563,7 +573,7 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                     } else {
                         Schedule::Static
                     },
-                    grain: 16,
+                    grain: k.grain,
                 },
             }
         }

@@ -88,6 +88,24 @@ fn a_step_above_the_stable_one_is_refused_or_warned() {
 }
 
 #[test]
+fn kernel_settings_are_read_and_bad_ones_refused() {
+    let text = format!("{BASE}\n[kernel]\ndynamic_schedule = true\ngrain = 4\nbatch = 16\n");
+    let s = parse(&text).unwrap();
+    assert_eq!(s.kernel.threading.grain, 4);
+    assert_eq!(
+        s.kernel.threading.schedule,
+        dem::distance::Schedule::Dynamic
+    );
+    assert_eq!(s.kernel.batch, 16);
+    // [kernel] is on line 22 of the text.
+    let e = parse(&text.replace("grain = 4", "grain = 0")).unwrap_err();
+    assert!(e.cause.contains("kernel.grain"), "{e}");
+    assert_eq!(e.line, 22, "{e}");
+    let e = parse(&text.replace("batch = 16", "batch = 12")).unwrap_err();
+    assert!(e.cause.contains("kernel.batch"), "{e}");
+}
+
+#[test]
 fn unknown_material_is_reported_at_the_particle() {
     let e = parse(&BASE.replace("material = \"m\"", "material = \"wood\"")).unwrap_err();
     assert!(e.cause.contains("unknown material `wood`"), "{e}");

@@ -1,10 +1,13 @@
-//! Broad phase: sort and sweep along x over the boxes of the body groups of a
-//! triangle set, inflated by the halos.
+//! Broad phase: sort and sweep over the boxes of the body groups of a
+//! triangle set, inflated by the halos, along the axis on which the boxes'
+//! centres spread most (a pile on a floor is flat, a falling column tall: a
+//! fixed axis would compare most boxes with most others in one of them).
 
 use super::bounds::Bounds;
 use super::triangle_set::TriangleSet;
 use super::Phase;
 use crate::body::Body;
+use glam::DVec3;
 
 /// Which part of a group a box covers.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -32,12 +35,13 @@ pub(crate) fn body_pairs(set: &TriangleSet, bodies: &[Body], phase: Phase) -> Ve
             entries.push((g.ghost_box, k, Part::Ghost));
         }
     }
-    entries.sort_by(|x, y| x.0.lo.x.total_cmp(&y.0.lo.x).then(x.1.cmp(&y.1)));
+    let axis = widest_axis(&entries);
+    entries.sort_by(|x, y| x.0.lo[axis].total_cmp(&y.0.lo[axis]).then(x.1.cmp(&y.1)));
     let moving = |k: usize| !bodies[groups[k].body as usize].is_static();
     let mut pairs = Vec::new();
     for (n, &(bx, k, part)) in entries.iter().enumerate() {
         for &(by, l, other) in &entries[n + 1..] {
-            if by.lo.x > bx.hi.x {
+            if by.lo[axis] > bx.hi[axis] {
                 break;
             }
             let pair = match (phase, part, other) {
@@ -53,4 +57,33 @@ pub(crate) fn body_pairs(set: &TriangleSet, bodies: &[Body], phase: Phase) -> Ve
     }
     pairs.sort_unstable();
     pairs
+}
+
+/// The axis of largest variance of the boxes' centres. Boxes that span most of
+/// the scene (floors, walls) are left out: they overlap everything on any axis.
+fn widest_axis(entries: &[(Bounds, usize, Part)]) -> usize {
+    let scene = entries.iter().fold(Bounds::EMPTY, |acc, e| acc.union(&e.0));
+    let span = scene.hi - scene.lo;
+    let (mut n, mut sum, mut sum2) = (0.0, DVec3::ZERO, DVec3::ZERO);
+    for (b, _, _) in entries {
+        let size = b.hi - b.lo;
+        if size.cmpgt(span * 0.5).any() {
+            continue;
+        }
+        let c = (b.lo + b.hi) * 0.5;
+        n += 1.0;
+        sum += c;
+        sum2 += c * c;
+    }
+    if n < 2.0 {
+        return 0;
+    }
+    let var = sum2 / n - (sum / n) * (sum / n);
+    if var.x >= var.y && var.x >= var.z {
+        0
+    } else if var.y >= var.z {
+        1
+    } else {
+        2
+    }
 }

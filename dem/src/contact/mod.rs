@@ -15,7 +15,8 @@
 //!    (the face normals are two separating axes: cheap, and decisive for large
 //!    obstacle triangles whose boxes cover many particles).
 //! 3. Narrow phase: the hybrid distance kernel on all surviving triangle pairs,
-//!    in SIMD batches, multi-threaded.
+//!    in SIMD batches. Culling and kernel run in the same parallel task, over
+//!    a share of the body pairs.
 //! 4. A pair of triangles is in contact when d < halo_a + halo_b; depth is
 //!    halo_a + halo_b - d, the contact point the midpoint of the closest points
 //!    P, Q and the normal (P - Q)/|P - Q|. When P = Q (triangles crossing, a
@@ -35,7 +36,9 @@ mod triangle_set;
 pub use bounds::Bounds;
 pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
-use crate::distance::{distance_many, Closest, Options, PenaltyStats, Solver, Triangle};
+use crate::distance::{
+    distance_many_serial, Closest, Counts, Options, PenaltyStats, Schedule, Solver, Triangle,
+};
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -103,11 +106,23 @@ impl std::ops::AddAssign for DetectionStats {
 pub struct Detector {
     /// The one-node set, following the world.
     set: TriangleSet,
-    pairs: Vec<(Triangle, Triangle)>,
+    /// One per task of a pass, kept between passes for their capacity.
+    tasks: Vec<Task>,
+    found: Vec<TriangleContact>,
+}
+
+/// What one parallel task of a detection pass owns: its share of the body
+/// pairs is culled and sent through the kernel by the same thread, so the
+/// triangle pairs stay in its cache and no pass joins between the two.
+#[derive(Debug, Default)]
+struct Task {
+    candidates: Vec<(u32, Bounds)>,
     owners: Vec<(u32, u32)>,
+    pairs: Vec<(Triangle, Triangle)>,
     out: Vec<Closest>,
     stats: Vec<PenaltyStats>,
     found: Vec<TriangleContact>,
+    counts: Counts,
 }
 
 impl Detector {
@@ -134,6 +149,10 @@ impl Detector {
     /// Appends to `found` the triangle contacts of one phase on `set`, in no
     /// particular order ([`body_contacts`] sorts). Returns the pass's counts
     /// (contacts counted after merging by [`body_contacts`], so 0 here).
+    ///
+    /// Body pairs are shared among tasks as the kernel's schedule says:
+    /// static, one contiguous share per thread; dynamic, `grain` body pairs
+    /// per task, taken on demand.
     pub fn triangle_contacts(
         &mut self,
         world: &World,
@@ -143,81 +162,110 @@ impl Detector {
         phase: Phase,
         found: &mut Vec<TriangleContact>,
     ) -> DetectionStats {
-        let groups = set.groups();
         let body_pairs = broad_phase::body_pairs(set, &world.bodies, phase);
+        let per_task = match opts.threading.schedule {
+            Schedule::Static => body_pairs.len().div_ceil(rayon::current_num_threads()),
+            Schedule::Dynamic => opts.threading.grain,
+        }
+        .max(1);
+        let n_tasks = body_pairs.len().div_ceil(per_task);
+        if self.tasks.len() < n_tasks {
+            self.tasks.resize_with(n_tasks, Task::default);
+        }
+        body_pairs
+            .par_chunks(per_task)
+            .zip(self.tasks[..n_tasks].par_iter_mut())
+            .with_max_len(1)
+            .for_each(|(share, task)| task.run(set, halos, opts, phase, share));
+        let mut triangle_pairs = 0;
+        let mut counts = Counts::default();
+        for task in &self.tasks[..n_tasks] {
+            found.extend_from_slice(&task.found);
+            triangle_pairs += task.pairs.len();
+            counts = counts + task.counts;
+        }
+        DetectionStats {
+            body_pairs: body_pairs.len() as u64,
+            triangle_pairs: triangle_pairs as u64,
+            fallback_pairs: counts.fallback_pairs as u64,
+            contacts: 0,
+            deep_contacts: 0,
+        }
+    }
+}
 
-        // Triangle pairs of every body pair, culled by inflated boxes and face planes.
-        let owners: Vec<(u32, u32)> = body_pairs
-            .par_iter()
-            .map_init(Vec::new, |ha: &mut Vec<(u32, Bounds)>, &(g, h)| {
-                let (ga, gb) = (&groups[g], &groups[h]);
-                let (a_part, a_box) = (ga.owned.clone(), ga.owned_box);
-                let (b_part, b_box) = match phase {
-                    Phase::LocalLocal => (gb.owned.clone(), gb.owned_box),
-                    Phase::LocalGhost => (gb.ghost.clone(), gb.ghost_box),
-                };
-                let reach = halos[ga.body as usize] + halos[gb.body as usize];
-                ha.clear();
-                ha.extend(
-                    a_part
-                        .map(|i| (i as u32, set.triangle(i).bounds))
-                        .filter(|(_, bx)| bx.overlaps(&b_box)),
-                );
-                let mut found = Vec::new();
-                if ha.is_empty() {
-                    return found;
+impl Task {
+    /// Culls the triangle pairs of `body_pairs` (group indices of `set`) by
+    /// inflated boxes and face planes, computes their distances and keeps
+    /// those within reach.
+    fn run(
+        &mut self,
+        set: &TriangleSet,
+        halos: &[f64],
+        opts: &Options,
+        phase: Phase,
+        body_pairs: &[(usize, usize)],
+    ) {
+        let groups = set.groups();
+        self.owners.clear();
+        for &(g, h) in body_pairs {
+            let (ga, gb) = (&groups[g], &groups[h]);
+            let (a_part, a_box) = (ga.owned.clone(), ga.owned_box);
+            let (b_part, b_box) = match phase {
+                Phase::LocalLocal => (gb.owned.clone(), gb.owned_box),
+                Phase::LocalGhost => (gb.ghost.clone(), gb.ghost_box),
+            };
+            let reach = halos[ga.body as usize] + halos[gb.body as usize];
+            let candidates = &mut self.candidates;
+            candidates.clear();
+            candidates.extend(
+                a_part
+                    .map(|i| (i as u32, set.triangle(i).bounds))
+                    .filter(|(_, bx)| bx.overlaps(&b_box)),
+            );
+            if candidates.is_empty() {
+                continue;
+            }
+            for j in b_part {
+                let tj = set.triangle(j);
+                if !tj.bounds.overlaps(&a_box) {
+                    continue;
                 }
-                for j in b_part {
-                    let tj = set.triangle(j);
-                    if !tj.bounds.overlaps(&a_box) {
-                        continue;
-                    }
-                    for &(i, bi) in ha.iter() {
-                        let ti = set.triangle(i as usize);
-                        if bi.overlaps(&tj.bounds)
-                            && !plane_separates(tj.plane, &ti.vertices, reach)
-                            && !plane_separates(ti.plane, &tj.vertices, reach)
-                        {
-                            found.push((i, j as u32));
-                        }
+                for &(i, bi) in candidates.iter() {
+                    let ti = set.triangle(i as usize);
+                    if bi.overlaps(&tj.bounds)
+                        && !plane_separates(tj.plane, &ti.vertices, reach)
+                        && !plane_separates(ti.plane, &tj.vertices, reach)
+                    {
+                        self.owners.push((i, j as u32));
                     }
                 }
-                found
-            })
-            .flatten_iter()
-            .collect();
+            }
+        }
         self.pairs.clear();
-        self.pairs.par_extend(owners.par_iter().map(|&(i, j)| {
+        self.pairs.extend(self.owners.iter().map(|&(i, j)| {
             (
                 set.triangle(i as usize).vertices,
                 set.triangle(j as usize).vertices,
             )
         }));
-        self.owners = owners;
         let n = self.pairs.len();
         self.out.resize(n, placeholder());
         self.stats.resize(n, PenaltyStats::default());
-        let counts = distance_many(&self.pairs, opts, &mut self.out, &mut self.stats)
+        self.counts = distance_many_serial(&self.pairs, opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
-
+        self.found.clear();
         for (&(i, j), r) in self.owners.iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
             if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
                 let n = set.triangle(j as usize).plane.0;
-                found.push(TriangleContact {
+                self.found.push(TriangleContact {
                     a: ka,
                     b: kb,
                     closest: *r,
                     face_normal_b: if n == DVec3::ZERO { DVec3::Z } else { n },
                 });
             }
-        }
-        DetectionStats {
-            body_pairs: body_pairs.len() as u64,
-            triangle_pairs: n as u64,
-            fallback_pairs: counts.fallback_pairs as u64,
-            contacts: 0,
-            deep_contacts: 0,
         }
     }
 }

@@ -175,6 +175,26 @@ pub fn distance_many(
     Ok(counts)
 }
 
+/// Like [`distance_many`] on the calling thread only: for callers that are
+/// already inside a parallel task of their own (contact detection runs
+/// culling and kernel together per task).
+pub fn distance_many_serial(
+    pairs: &[(Triangle, Triangle)],
+    opts: &Options,
+    out: &mut [Closest],
+    stats: &mut [PenaltyStats],
+) -> Result<Counts, UnsupportedBatch> {
+    assert_eq!(pairs.len(), out.len());
+    assert_eq!(pairs.len(), stats.len());
+    if !super::penalty::BATCH_SIZES.contains(&opts.batch) {
+        return Err(UnsupportedBatch(opts.batch));
+    }
+    if pairs.is_empty() {
+        return Ok(Counts::default());
+    }
+    Ok(serial_chunk(pairs, opts, out, stats))
+}
+
 /// One thread's share, batch by batch.
 fn serial_chunk(
     pairs: &[(Triangle, Triangle)],

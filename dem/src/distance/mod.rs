@@ -32,7 +32,8 @@ pub use distance_triangle_triangle_batch::{
     distance_triangle_triangle_batch, distance_triangle_triangle_many, LANES as BRUTE_LANES,
 };
 pub use hybrid::{
-    distance_many, distances, Counts, Fallback, Method, Options, Schedule, Threading,
+    distance_many, distance_many_serial, distances, Counts, Fallback, Method, Options, Schedule,
+    Threading,
 };
 pub use isa::Isa;
 pub use penalty::{
