@@ -92,7 +92,15 @@ fn a_bad_scene_is_an_error_with_file_and_line() {
 
 #[test]
 fn shipped_scenes_parse() {
-    for s in ["two-particles.toml", "drop.toml", "hopper.toml"] {
-        dem::scene::Scene::load(std::path::Path::new(&scene(s))).unwrap_or_else(|e| panic!("{e}"));
+    let dir = std::path::PathBuf::from(scene(""));
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .expect("scenes/ exists")
+        .map(|e| e.expect("readable entry").path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    names.sort();
+    assert!(names.len() >= 4, "{names:?}");
+    for p in names {
+        dem::scene::Scene::load(&p).unwrap_or_else(|e| panic!("{e}"));
     }
 }
