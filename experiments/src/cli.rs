@@ -27,6 +27,9 @@ pub enum Command {
     Partition(PartitionArgs),
     /// Run a DEM scene (TOML) on this node.
     Run(RunArgs),
+    /// Thread scaling of a DEM scene: runs at each thread count, alternating, and the
+    /// ratio of the median times, measured side by side in one invocation.
+    Scaling(ScalingArgs),
     /// Plot the JSON lines of `tridem partition --json` runs (time and ghosts per partitioner).
     PartitionPlot(PartitionPlotArgs),
 }
@@ -38,6 +41,24 @@ pub struct PartitionPlotArgs {
     /// The SVG to write.
     #[arg(long)]
     pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct ScalingArgs {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// Steps per run (default: end_time / dt of the scene).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Thread counts to compare, the first being the reference.
+    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    pub threads: Vec<usize>,
+    /// Runs per thread count (rounds alternate between thread counts).
+    #[arg(long, default_value_t = 5)]
+    pub repeat: usize,
+    /// Print one JSON object per thread count instead of a table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]

@@ -10,6 +10,7 @@ mod pairs_csv;
 mod partition_cmd;
 mod plot;
 mod run_cmd;
+mod scaling_cmd;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -22,6 +23,7 @@ fn main() -> ExitCode {
         cli::Command::Kernels(args) => kernels::run(&args),
         cli::Command::Partition(args) => partition_cmd::run(&args),
         cli::Command::Run(args) => run_cmd::run(&args),
+        cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
     };
     match result {

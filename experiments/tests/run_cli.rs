@@ -104,3 +104,44 @@ fn shipped_scenes_parse() {
         dem::scene::Scene::load(&p).unwrap_or_else(|e| panic!("{e}"));
     }
 }
+
+#[test]
+fn scaling_compares_thread_counts_and_their_results() {
+    let (code, out, err) = tridem(&[
+        "scaling",
+        &scene("hopper.toml"),
+        "--steps",
+        "300",
+        "--threads",
+        "1,2",
+        "--repeat",
+        "2",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    assert_eq!(rows[0]["threads"], 1);
+    assert_eq!(rows[1]["threads"], 2);
+    // The reference's speed-up is 1 by definition; each row lists its runs.
+    assert_eq!(rows[0]["speedup"], 1.0);
+    for r in &rows {
+        assert_eq!(r["seconds"].as_array().unwrap().len(), 2);
+        let (m, s) = (
+            r["median_seconds"].as_f64().unwrap(),
+            r["speedup"].as_f64().unwrap(),
+        );
+        assert!(m > 0.0 && s > 0.0, "{r}");
+        // The hopper falls back per failed pair: results do not depend on threads.
+        assert_eq!(r["identical_results"], true, "{r}");
+    }
+    let (code, _, err) = tridem(&["scaling", &scene("hopper.toml"), "--threads", "0"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--threads") && !err.contains("panicked"),
+        "{err}"
+    );
+}

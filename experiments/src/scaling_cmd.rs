@@ -1,0 +1,140 @@
+//! `tridem scaling SCENE`: the thread scaling of a DEM run, measured side by
+//! side. Rounds alternate between the thread counts, so that a slow minute of
+//! a noisy machine hits every count alike; the speed-up is the ratio of the
+//! medians. Each run starts from the scene's initial state, and the final
+//! states are compared: a run's result must not depend on its thread count.
+
+use crate::cli::ScalingArgs;
+use crate::error::{CliError, CliResult};
+use dem::scene::Scene;
+use dem::simulation::Simulation;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::time::Instant;
+
+/// What one run leaves behind: its wall time and the bodies' final positions.
+struct RunResult {
+    seconds: f64,
+    positions: Vec<glam::DVec3>,
+}
+
+pub fn run(args: &ScalingArgs) -> CliResult {
+    if args.threads.is_empty() || args.threads.contains(&0) {
+        return Err(CliError::input(
+            "--threads needs thread counts of at least 1",
+        ));
+    }
+    if args.repeat == 0 {
+        return Err(CliError::input("--repeat must be at least 1"));
+    }
+    let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+    let steps = args
+        .steps
+        .unwrap_or_else(|| (scene.end_time / scene.dt).round() as u64);
+    let pools = args
+        .threads
+        .iter()
+        .map(|&t| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .map_err(|e| CliError::runtime(e.to_string()))
+        })
+        .collect::<CliResult<Vec<_>>>()?;
+    let bar = ProgressBar::new((args.repeat * pools.len()) as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed} eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    let mut results: Vec<Vec<RunResult>> = pools.iter().map(|_| Vec::new()).collect();
+    for _ in 0..args.repeat {
+        for (pool, runs) in pools.iter().zip(&mut results) {
+            runs.push(pool.install(|| one_run(&scene, steps)));
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+
+    let particles = scene.world.dynamic_count() as f64;
+    let reference = &results[0][0].positions;
+    let identical = results
+        .iter()
+        .all(|runs| runs.iter().all(|r| &r.positions == reference));
+    let medians: Vec<f64> = results
+        .iter()
+        .map(|runs| median(runs.iter().map(|r| r.seconds).collect()))
+        .collect();
+    let rows: Vec<serde_json::Value> = args
+        .threads
+        .iter()
+        .zip(&results)
+        .zip(&medians)
+        .map(|((&t, runs), &m)| {
+            serde_json::json!({
+                "scene": args.scene.display().to_string(),
+                "steps": steps,
+                "threads": t,
+                "seconds": runs.iter().map(|r| r.seconds).collect::<Vec<_>>(),
+                "median_seconds": m,
+                "seconds_per_particle_step": m / (steps as f64 * particles),
+                "speedup": medians[0] / m,
+                "identical_results": identical,
+            })
+        })
+        .collect();
+    if args.json {
+        for r in &rows {
+            println!("{r}");
+        }
+        return Ok(());
+    }
+    println!(
+        "{}: {} particles, {steps} steps, {} runs per thread count, alternating",
+        args.scene.display(),
+        scene.world.dynamic_count(),
+        args.repeat
+    );
+    println!(
+        "{:>7}  {:>10}  {:>14}  {:>8}  runs (s)",
+        "threads", "median (s)", "s/particle-step", "speed-up"
+    );
+    for ((&t, runs), &m) in args.threads.iter().zip(&results).zip(&medians) {
+        let all: Vec<String> = runs.iter().map(|r| format!("{:.2}", r.seconds)).collect();
+        println!(
+            "{t:>7}  {m:>10.3}  {:>14.3e}  {:>7.2}x  {}",
+            m / (steps as f64 * particles),
+            medians[0] / m,
+            all.join(" ")
+        );
+    }
+    println!(
+        "final states {} across thread counts and runs",
+        if identical { "bit-identical" } else { "DIFFER" }
+    );
+    Ok(())
+}
+
+/// One run from the initial state, timed, on the current pool (kept busy
+/// between parallel sections, as in `tridem run`).
+fn one_run(scene: &Scene, steps: u64) -> RunResult {
+    let mut sim = Simulation::new(scene);
+    let start = Instant::now();
+    dem::busy_workers::with_busy_workers(|| {
+        for _ in 0..steps {
+            sim.step();
+        }
+    });
+    RunResult {
+        seconds: start.elapsed().as_secs_f64(),
+        positions: sim.world.bodies.iter().map(|b| b.x).collect(),
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
