@@ -154,11 +154,7 @@ pub fn distance_many(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) -> Result<Counts, UnsupportedBatch> {
-    assert_eq!(pairs.len(), out.len());
-    assert_eq!(pairs.len(), stats.len());
-    if !super::penalty::BATCH_SIZES.contains(&opts.batch) {
-        return Err(UnsupportedBatch(opts.batch));
-    }
+    check_arguments(pairs.len(), opts, out.len(), stats.len())?;
     let n_batches = pairs.len().div_ceil(opts.batch);
     let chunk_batches = match opts.threading.schedule {
         Schedule::Static => n_batches.div_ceil(rayon::current_num_threads()).max(1),
@@ -184,15 +180,27 @@ pub fn distance_many_serial(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) -> Result<Counts, UnsupportedBatch> {
-    assert_eq!(pairs.len(), out.len());
-    assert_eq!(pairs.len(), stats.len());
-    if !super::penalty::BATCH_SIZES.contains(&opts.batch) {
-        return Err(UnsupportedBatch(opts.batch));
-    }
+    check_arguments(pairs.len(), opts, out.len(), stats.len())?;
     if pairs.is_empty() {
         return Ok(Counts::default());
     }
     Ok(serial_chunk(pairs, opts, out, stats))
+}
+
+/// Buffers of the pairs' length (a caller's bug otherwise) and a batch size
+/// the kernel has (a user's choice).
+fn check_arguments(
+    pairs: usize,
+    opts: &Options,
+    out: usize,
+    stats: usize,
+) -> Result<(), UnsupportedBatch> {
+    assert_eq!(pairs, out);
+    assert_eq!(pairs, stats);
+    if !super::penalty::BATCH_SIZES.contains(&opts.batch) {
+        return Err(UnsupportedBatch(opts.batch));
+    }
+    Ok(())
 }
 
 /// One thread's share, batch by batch.
