@@ -18,9 +18,14 @@ use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct F<const N: usize>(pub [f64; N]);
 
-/// One flag per lane.
+/// One flag per lane, as a full-width integer: all ones (set) or zero.
+///
+/// Not `[bool; N]`: LLVM packs eight bools into one 64-bit integer and then
+/// computes mask logic with scalar bit tricks and shuffles (profiled: a third
+/// of the penalty kernel's time went there). Lanes of the same width as `F`'s
+/// become vector compares, `vpand`/`vpor` and blends (or AVX-512 mask registers).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct M<const N: usize>(pub [bool; N]);
+pub struct M<const N: usize>([u64; N]);
 
 impl<const N: usize> F<N> {
     #[inline(always)]
@@ -48,9 +53,9 @@ impl<const N: usize> F<N> {
 
     #[inline(always)]
     fn test(self, o: Self, f: impl Fn(f64, f64) -> bool) -> M<N> {
-        let mut r = [false; N];
+        let mut r = [0; N];
         for i in 0..N {
-            r[i] = f(self.0[i], o.0[i]);
+            r[i] = if f(self.0[i], o.0[i]) { SET } else { 0 };
         }
         M(r)
     }
@@ -103,10 +108,35 @@ impl<const N: usize> F<N> {
     }
 }
 
+/// The bit pattern of a set lane of [`M`].
+const SET: u64 = u64::MAX;
+
 impl<const N: usize> M<N> {
+    /// From one flag per lane.
     #[inline(always)]
-    fn zip(self, o: Self, f: impl Fn(bool, bool) -> bool) -> Self {
-        let mut r = [false; N];
+    pub fn from_flags(flags: [bool; N]) -> Self {
+        M(flags.map(|b| if b { SET } else { 0 }))
+    }
+
+    /// Whether lane `i` is set.
+    #[inline(always)]
+    pub fn lane(self, i: usize) -> bool {
+        self.0[i] != 0
+    }
+
+    /// Every lane set.
+    #[inline(always)]
+    pub fn all(self) -> bool {
+        let mut r = SET;
+        for i in 0..N {
+            r &= self.0[i];
+        }
+        r != 0
+    }
+
+    #[inline(always)]
+    fn zip(self, o: Self, f: impl Fn(u64, u64) -> u64) -> Self {
+        let mut r = [0; N];
         for i in 0..N {
             r[i] = f(self.0[i], o.0[i]);
         }
@@ -118,7 +148,7 @@ impl<const N: usize> M<N> {
     pub fn select(self, a: F<N>, b: F<N>) -> F<N> {
         let mut r = [0.0; N];
         for i in 0..N {
-            r[i] = if self.0[i] { a.0[i] } else { b.0[i] };
+            r[i] = if self.0[i] != 0 { a.0[i] } else { b.0[i] };
         }
         F(r)
     }
@@ -188,7 +218,7 @@ impl<const N: usize> Not for M<N> {
     type Output = M<N>;
     #[inline(always)]
     fn not(self) -> M<N> {
-        let mut r = [false; N];
+        let mut r = [0; N];
         for i in 0..N {
             r[i] = !self.0[i];
         }
@@ -253,8 +283,9 @@ mod tests {
         let b = F([3.0, 4.0, -0.25, 1.0]);
         assert_eq!((a + b).0[..3], [4.0, 2.0, 0.25]);
         assert_eq!((a * b).0[..3], [3.0, -8.0, -0.125]);
-        assert_eq!(a.lt(b).0, [true, true, false, false]);
-        assert_eq!(a.finite().0, [true, true, true, false]);
+        assert_eq!(a.lt(b), M::from_flags([true, true, false, false]));
+        assert!(!a.lt(b).all() && a.lt(b).lane(1));
+        assert_eq!(a.finite(), M::from_flags([true, true, true, false]));
         assert_eq!(a.lt(b).select(a, b).0[..3], [1.0, -2.0, -0.25]);
         let x = V3([F([1.0]), F([0.0]), F([0.0])]);
         let y = V3([F([0.0]), F([1.0]), F([0.0])]);

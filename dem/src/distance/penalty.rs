@@ -113,6 +113,14 @@ fn gram_scale<const N: usize>(g: &Sym4<N>) -> F<N> {
 
 /// Newton's iterates of one batch: per lane the parameters (a, b, c, d), the
 /// scale trace(G) / 4 and the step count.
+///
+/// The gradient is taken as g = G s + h with h_i = u_i . w rather than through
+/// the residual r = w + sum s_i u_i: 16 multiply-adds instead of 24, and the
+/// loop then keeps only G, h and s live (18 vectors instead of 29), so less
+/// spills out of the 32 vector registers. Forming
+/// G s + h loses absolute accuracy of order eps L^2 near the minimiser, where
+/// g -> 0; Newton only has to find the active features, and the finish
+/// recomputes the residual exactly.
 #[inline(always)]
 fn newton_lanes<const N: usize>(
     batch: &Batch<N>,
@@ -124,56 +132,62 @@ fn newton_lanes<const N: usize>(
         g[k] = u[i].dot(u[j]);
     }
     let scale = gram_scale(&g);
-    let rho = scale * prm.penalty;
-    let mut delta = scale * prm.regularisation;
+    // Newton runs on G / scale and h / scale (the step is unchanged): entries
+    // of order one, which the one-division solver needs.
+    let inv_scale = 1.0 / scale;
+    for gk in &mut g {
+        *gk = *gk * inv_scale;
+    }
+    let h = [u[0].dot(w), u[1].dot(w), u[2].dot(w), u[3].dot(w)].map(|hi| hi * inv_scale);
+    let rho = F::splat(prm.penalty);
+    let mut delta = F::splat(prm.regularisation);
     // Keep the system numerically positive definite: G is singular and a
     // vanishing delta would let rounding make it indefinite.
-    let delta_min = scale * MIN_REGULARISATION;
+    let delta_min = F::splat(MIN_REGULARISATION);
     let zero = F::splat(0.0);
     let mut s = [F::splat(1.0 / 3.0); 4];
-    let mut iters = [prm.max_iterations as u8; N];
+    // Per lane, the step after which Newton's step became negligible (as f64:
+    // bookkeeping in vector registers, no per-lane branches).
+    let mut settled_after = F::splat(prm.max_iterations as f64);
     for it in 0..prm.max_iterations {
         let [a, b, c, d] = s;
-        // Residual r = w + sum s_i u_i and gradient g_i = u_i . r.
-        let r = w + u[0].scale(a) + u[1].scale(b) + u[2].scale(c) + u[3].scale(d);
         // Constraint violations and active masks (selects, not branches).
         let v = [(-a).max(zero), (-b).max(zero), (a + b - 1.0).max(zero)];
         let vv = [(-c).max(zero), (-d).max(zero), (c + d - 1.0).max(zero)];
-        let m = |x: F<N>| x.gt(zero).to_f() * rho;
+        let m = |x: F<N>| x.gt(zero).select(rho, zero);
+        // Written out: a closure here is not inlined into the
+        // `#[target_feature]` callers and runs without their vector width.
         let grad = [
-            u[0].dot(r) + rho * (v[2] - v[0]),
-            u[1].dot(r) + rho * (v[2] - v[1]),
-            u[2].dot(r) + rho * (vv[2] - vv[0]),
-            u[3].dot(r) + rho * (vv[2] - vv[1]),
+            g[0] * a + g[1] * b + g[2] * c + g[3] * d + h[0] + rho * (v[2] - v[0]),
+            g[1] * a + g[4] * b + g[5] * c + g[6] * d + h[1] + rho * (v[2] - v[1]),
+            g[2] * a + g[5] * b + g[7] * c + g[8] * d + h[2] + rho * (vv[2] - vv[0]),
+            g[3] * a + g[6] * b + g[8] * c + g[9] * d + h[3] + rho * (vv[2] - vv[1]),
         ];
-        let h = [
-            g[0] + m(v[0]) + m(v[2]) + delta,
-            g[1] + m(v[2]),
+        let (m2, mm2) = (m(v[2]), m(vv[2]));
+        let hess = [
+            g[0] + m(v[0]) + m2 + delta,
+            g[1] + m2,
             g[2],
             g[3],
-            g[4] + m(v[1]) + m(v[2]) + delta,
+            g[4] + m(v[1]) + m2 + delta,
             g[5],
             g[6],
-            g[7] + m(vv[0]) + m(vv[2]) + delta,
-            g[8] + m(vv[2]),
-            g[9] + m(vv[1]) + m(vv[2]) + delta,
+            g[7] + m(vv[0]) + mm2 + delta,
+            g[8] + mm2,
+            g[9] + m(vv[1]) + mm2 + delta,
         ];
-        let x = solve_spd4_by_blocks(&h, [-grad[0], -grad[1], -grad[2], -grad[3]]);
+        let x = solve_spd4_by_blocks(&hess, [-grad[0], -grad[1], -grad[2], -grad[3]]);
         s = [a + x[0], b + x[1], c + x[2], d + x[3]];
         let step_max = x[0].abs().max(x[1].abs()).max(x[2].abs()).max(x[3].abs());
         delta = (delta * prm.regularisation_decay).max(delta_min);
-        // Bookkeeping: when did each lane settle?
-        let mut all_done = true;
-        for (n, &step) in iters.iter_mut().zip(&step_max.0) {
-            if step <= STEP_TOL && *n as usize > it + 1 {
-                *n = (it + 1) as u8;
-            }
-            all_done &= (*n as usize) <= it + 1;
-        }
-        if all_done {
+        let step = F::splat((it + 1) as f64);
+        let settled = step_max.le(F::splat(STEP_TOL));
+        settled_after = (settled & settled_after.gt(step)).select(step, settled_after);
+        if settled_after.le(step).all() {
             break;
         }
     }
+    let iters = settled_after.0.map(|n| n as u8);
     (s, scale, iters)
 }
 
@@ -233,7 +247,7 @@ fn penalty_batch_n<const N: usize>(
             solver: Solver::Penalty,
         };
         stats[lane] = PenaltyStats {
-            converged: f.certified.0[lane],
+            converged: f.certified.lane(lane),
             iterations: iters[lane],
         };
     }

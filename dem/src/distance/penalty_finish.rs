@@ -21,7 +21,7 @@
 //! directions of the feature pair) then bounds the error of |P - Q| rigorously;
 //! the pair counts as converged when the bound is within `tol * L`.
 
-use super::certificate::separation_along;
+use super::certificate::separation_proves;
 use super::lanes::{F, M, V3};
 use super::penalty::{Batch, PenaltyParams};
 use super::solve_spd4::{solve_spd4, Sym4, SYM4_INDEX};
@@ -150,9 +150,8 @@ impl<const N: usize> Candidate<N> {
         let q = b0 - u[2].scale(c) - u[3].scale(d);
         let n = p - q;
         let distance = n.dot(n).sqrt();
-        let lower = separation_along(n, u, b0);
         // NaN anywhere makes the comparison false.
-        let certified = (distance - lower).le(tol) & distance.finite();
+        let certified = separation_proves(n, u, b0, distance - tol) & distance.finite();
         Candidate {
             t,
             p,
@@ -169,16 +168,16 @@ impl<const N: usize> Candidate<N> {
         let (u, b0, t) = (&batch.u, -batch.w, self.t);
         let ea = feature_edge(t[0], t[1], u[0], u[1]);
         let eb = feature_edge(t[2], t[3], u[2], u[3]);
-        let lower = separation_along(u[0].cross(u[1]), u, b0)
-            .max(separation_along(u[2].cross(u[3]), u, b0))
-            .max(separation_along(ea.cross(eb), u, b0));
-        self.certified =
-            self.certified | ((self.distance - lower).le(tol) & self.distance.finite());
+        let need = self.distance - tol;
+        let proven = separation_proves(u[0].cross(u[1]), u, b0, need)
+            | separation_proves(u[2].cross(u[3]), u, b0, need)
+            | separation_proves(ea.cross(eb), u, b0, need);
+        self.certified = self.certified | (proven & self.distance.finite());
     }
 
     #[inline(always)]
     fn all_certified(&self) -> bool {
-        self.certified.0.iter().all(|&c| c)
+        self.certified.all()
     }
 
     /// Per lane, `other` where this one is not certified and `other` is

@@ -1,12 +1,12 @@
 //! Solving a 4x4 symmetric positive definite system, unrolled, two ways.
 //!
-//! LDL^T (four divisions in a chain) where accuracy matters. For speed, by 2x2 blocks, one per triangle: with H = [[A, C], [C^T, B]], eliminate
-//! the first triangle's unknowns through A^-1 (a 2x2 inverse), solve the
-//! Schur complement S = B - C^T A^-1 C, then substitute back. Two divisions
-//! (1/det A, 1/det S) and no square roots: divisions are the slowest vector
-//! instructions in the Newton step and an LDL^T factorisation needs four, in
-//! a chain. Both blocks of an SPD matrix are SPD, so the determinants are
-//! positive. Straight-line code on lanes, so it vectorises.
+//! LDL^T (four divisions in a chain) where accuracy matters. For speed, by 2x2
+//! blocks, one per triangle: with H = [[A, C], [C^T, B]], eliminate the first
+//! triangle's unknowns through A's adjugate, solve the Schur complement, then
+//! substitute back, with one division and no square roots: divisions are the
+//! slowest vector instructions in the Newton step and an LDL^T factorisation
+//! needs four, in a chain. Both blocks of an SPD matrix are SPD, so the
+//! determinants are positive. Straight-line code on lanes, so it vectorises.
 
 use super::lanes::F;
 
@@ -60,32 +60,43 @@ pub fn solve_spd4<const N: usize>(h: &Sym4<N>, rhs: [F<N>; 4]) -> [F<N>; 4] {
 }
 
 /// x with H x = rhs in each lane, for H symmetric positive definite, by 2x2
-/// blocks: two divisions. Less accurate than [`solve_spd4`] when a block is
-/// nearly singular (a sliver triangle): good for Newton's steps, which only
-/// need to head the right way, not for the finish.
+/// blocks and a single division. Less accurate than [`solve_spd4`] when a
+/// block is nearly singular (a sliver triangle): good for Newton's steps, which
+/// only need to head the right way, not for the finish.
+///
+/// With H = [[A, C], [C^T, B]], the Schur complement is kept multiplied by
+/// det A, S' = det A B - C^T adj(A) C, so that S' x_B = det A rhs_B -
+/// C^T adj(A) rhs_A needs no 1/det A, and x_A = (adj(A) rhs_A - adj(A) C x_B)
+/// / det A. Both reciprocals come from one division, 1 / (det A det S'):
+/// divisions are the slowest vector instructions and Newton's step is a chain
+/// of dependent operations, so each division saved shortens the chain. The
+/// products of determinants reach the 8th power of H's entries: H must be
+/// scaled to entries of order one (the callers divide by trace(G) / 4).
 #[inline(always)]
 pub fn solve_spd4_by_blocks<const N: usize>(h: &Sym4<N>, rhs: [F<N>; 4]) -> [F<N>; 4] {
     let [h00, h01, h02, h03, h11, h12, h13, h22, h23, h33] = *h;
-    // X = A^-1 C with A = [[h00, h01], [h01, h11]], C = [[h02, h03], [h12, h13]].
-    let ia = 1.0 / (h00 * h11 - h01 * h01);
-    let x00 = (h11 * h02 - h01 * h12) * ia;
-    let x01 = (h11 * h03 - h01 * h13) * ia;
-    let x10 = (h00 * h12 - h01 * h02) * ia;
-    let x11 = (h00 * h13 - h01 * h03) * ia;
-    // S = B - C^T X.
-    let s00 = h22 - (h02 * x00 + h12 * x10);
-    let s01 = h23 - (h02 * x01 + h12 * x11);
-    let s11 = h33 - (h03 * x01 + h13 * x11);
-    let is = 1.0 / (s00 * s11 - s01 * s01);
-    // y = A^-1 rhs_A; then S x_B = rhs_B - C^T y; then x_A = y - X x_B.
-    let y0 = (h11 * rhs[0] - h01 * rhs[1]) * ia;
-    let y1 = (h00 * rhs[1] - h01 * rhs[0]) * ia;
-    let r2 = rhs[2] - (h02 * y0 + h12 * y1);
-    let r3 = rhs[3] - (h03 * y0 + h13 * y1);
-    let x2 = (s11 * r2 - s01 * r3) * is;
-    let x3 = (s00 * r3 - s01 * r2) * is;
-    let x0 = y0 - (x00 * x2 + x01 * x3);
-    let x1 = y1 - (x10 * x2 + x11 * x3);
+    let det_a = h00 * h11 - h01 * h01;
+    // Y = adj(A) C with A = [[h00, h01], [h01, h11]], C = [[h02, h03], [h12, h13]].
+    let y00 = h11 * h02 - h01 * h12;
+    let y01 = h11 * h03 - h01 * h13;
+    let y10 = h00 * h12 - h01 * h02;
+    let y11 = h00 * h13 - h01 * h03;
+    // S' = det A B - C^T Y.
+    let s00 = det_a * h22 - (h02 * y00 + h12 * y10);
+    let s01 = det_a * h23 - (h02 * y01 + h12 * y11);
+    let s11 = det_a * h33 - (h03 * y01 + h13 * y11);
+    let det_s = s00 * s11 - s01 * s01;
+    let inv = 1.0 / (det_a * det_s);
+    let (inv_a, inv_s) = (det_s * inv, det_a * inv);
+    // z = adj(A) rhs_A; S' x_B = det A rhs_B - C^T z; x_A = (z - Y x_B) / det A.
+    let z0 = h11 * rhs[0] - h01 * rhs[1];
+    let z1 = h00 * rhs[1] - h01 * rhs[0];
+    let r2 = det_a * rhs[2] - (h02 * z0 + h12 * z1);
+    let r3 = det_a * rhs[3] - (h03 * z0 + h13 * z1);
+    let x2 = (s11 * r2 - s01 * r3) * inv_s;
+    let x3 = (s00 * r3 - s01 * r2) * inv_s;
+    let x0 = (z0 - (y00 * x2 + y01 * x3)) * inv_a;
+    let x1 = (z1 - (y10 * x2 + y11 * x3)) * inv_a;
     [x0, x1, x2, x3]
 }
 
