@@ -31,7 +31,9 @@ struct Plane {
     n: V3,
     nn: L,
     m: [V3; 3],
-    usable: [bool; LANES],
+    /// All ones where usable: not `[bool; LANES]`, which LLVM packs into one
+    /// integer and tests with scalar bit tricks instead of vector masks.
+    usable: [u64; LANES],
 }
 
 #[inline(always)]
@@ -64,7 +66,7 @@ fn plane_of(t: &[V3; 3]) -> Plane {
         n: [[0.0; LANES]; 3],
         nn: [0.0; LANES],
         m: [[[0.0; LANES]; 3]; 3],
-        usable: [false; LANES],
+        usable: [0; LANES],
     };
     for l in 0..LANES {
         let e0 = sub(&t[1], &t[0], l);
@@ -93,7 +95,7 @@ fn plane_of(t: &[V3; 3]) -> Plane {
             }
         }
         p.nn[l] = nn;
-        p.usable[l] = usable;
+        p.usable[l] = if usable { u64::MAX } else { 0 };
     }
     p
 }
@@ -108,7 +110,7 @@ struct Best {
 fn consider(best: &mut Best, l: usize, p: [f64; 3], q: [f64; 3], ok: bool) {
     let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
     let dd = dot(d, d);
-    let take = ok && dd < best.d[l];
+    let take = ok & (dd < best.d[l]);
     if take {
         best.d[l] = dd;
         for k in 0..3 {
@@ -125,6 +127,21 @@ fn batch(pk: &Packed) -> (V3, V3) {
         p: pk.a[0],
         q: pk.b[0],
     };
+    // 1 / |edge|^2 of the six edges, once rather than once per edge pair:
+    // divisions are the slowest vector instructions (the same quotients as
+    // the scalar code, so answers stay bit-identical).
+    let inv_len2 = |t: &[V3; 3]| {
+        let mut r = [[0.0; LANES]; 3];
+        for (i, ri) in r.iter_mut().enumerate() {
+            for l in 0..LANES {
+                let d = sub(&t[(i + 1) % 3], &t[i], l);
+                let a = dot(d, d);
+                ri[l] = if a > 0.0 { 1.0 / a } else { 0.0 };
+            }
+        }
+        r
+    };
+    let (inv_a_all, inv_e_all) = (inv_len2(&pk.a), inv_len2(&pk.b));
     // 9 edge pairs, branch-free Ericson clamping (see closest_point_segment_segment.rs).
     for i in 0..3 {
         for j in 0..3 {
@@ -134,10 +151,8 @@ fn batch(pk: &Packed) -> (V3, V3) {
                 let d1 = sub(&pk.a[i1], &pk.a[i], l);
                 let p2 = get(&pk.b[j], l);
                 let d2 = sub(&pk.b[j1], &pk.b[j], l);
-                let a = dot(d1, d1);
                 let e = dot(d2, d2);
-                let inv_a = if a > 0.0 { 1.0 / a } else { 0.0 };
-                let inv_e = if e > 0.0 { 1.0 / e } else { 0.0 };
+                let (inv_a, inv_e) = (inv_a_all[i][l], inv_e_all[j][l]);
                 let r = [p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]];
                 let f = dot(d2, r);
                 let c = dot(d1, r);
@@ -164,11 +179,14 @@ fn batch(pk: &Packed) -> (V3, V3) {
         for v in verts.iter() {
             for l in 0..LANES {
                 let x = get(v, l);
-                let inside = (0..3).all(|i| dot(get(&plane.m[i], l), sub(v, &tri[i], l)) >= 0.0);
+                // `&`, not `&&` or `all`: no short-circuit branches in a lane loop.
+                let inside = (dot(get(&plane.m[0], l), sub(v, &tri[0], l)) >= 0.0)
+                    & (dot(get(&plane.m[1], l), sub(v, &tri[1], l)) >= 0.0)
+                    & (dot(get(&plane.m[2], l), sub(v, &tri[2], l)) >= 0.0);
                 let n = get(&plane.n, l);
                 let h = dot(n, sub(v, &tri[0], l)) / plane.nn[l];
                 let proj = [x[0] - n[0] * h, x[1] - n[1] * h, x[2] - n[2] * h];
-                let ok = plane.usable[l] && inside;
+                let ok = (plane.usable[l] != 0) & inside;
                 if a_side {
                     consider(&mut best, l, x, proj, ok);
                 } else {
@@ -178,7 +196,7 @@ fn batch(pk: &Packed) -> (V3, V3) {
         }
     }
     // Edges piercing the other triangle: distance 0 at the crossing point.
-    let mut pierce = [false; LANES];
+    let mut pierce = [0u64; LANES];
     let mut px: V3 = [[0.0; LANES]; 3];
     for (s, t, plane) in [(&pk.a, &pk.b, &pb), (&pk.b, &pk.a, &pa)] {
         for i in 0..3 {
@@ -187,21 +205,26 @@ fn batch(pk: &Packed) -> (V3, V3) {
                 let n = get(&plane.n, l);
                 let h0 = dot(n, sub(&s[i], &t[0], l));
                 let h1 = dot(n, sub(&s[j], &t[0], l));
-                let crosses = (h0 > 0.0 && h1 < 0.0) || (h0 < 0.0 && h1 > 0.0);
+                let crosses = ((h0 > 0.0) & (h1 < 0.0)) | ((h0 < 0.0) & (h1 > 0.0));
                 let w = if crosses { h0 / (h0 - h1) } else { 0.0 };
                 let e = sub(&s[j], &s[i], l);
                 let x0 = get(&s[i], l);
                 let x = [x0[0] + e[0] * w, x0[1] + e[1] * w, x0[2] + e[2] * w];
-                let inside = (0..3).all(|k| {
+                let side = |k: usize| {
                     let tk = get(&t[k], l);
                     dot(
                         get(&plane.m[k], l),
                         [x[0] - tk[0], x[1] - tk[1], x[2] - tk[2]],
                     ) >= 0.0
-                });
-                let hit = plane.usable[l] && crosses && inside && !pierce[l] && best.d[l] > 0.0;
+                };
+                let inside = side(0) & side(1) & side(2);
+                let hit = (plane.usable[l] != 0)
+                    & crosses
+                    & inside
+                    & (pierce[l] == 0)
+                    & (best.d[l] > 0.0);
                 if hit {
-                    pierce[l] = true;
+                    pierce[l] = u64::MAX;
                     for k in 0..3 {
                         px[k][l] = x[k];
                     }
@@ -210,7 +233,7 @@ fn batch(pk: &Packed) -> (V3, V3) {
         }
     }
     for l in 0..LANES {
-        if pierce[l] {
+        if pierce[l] != 0 {
             for (k, pxk) in px.iter().enumerate() {
                 best.p[k][l] = pxk[l];
                 best.q[k][l] = pxk[l];
