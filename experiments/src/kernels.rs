@@ -1,15 +1,16 @@
 //! `tridem kernels`: the triangle-distance benchmark and the accuracy-vs-time sweep.
 //!
-//! Every number is measured in this run, side by side on the same pairs; times
-//! are medians over repetitions, so ratios between rows are what to read.
+//! Every number is measured in this run, side by side on the same pairs: the
+//! rows run in alternating rounds and each time is the median over rounds, so
+//! ratios between rows are what to read.
 
 use crate::cli::KernelsArgs;
 use crate::error::{CliError, CliResult};
 use crate::plot;
 use dem::distance::{
     distance_many, distances, pair_scale, penalty_many_on, penalty_scalar, random_unit_pairs,
-    Closest, Fallback, Isa, Method, Options, PenaltyParams, PenaltyStats, Schedule, Threading,
-    Triangle,
+    Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams, PenaltyStats, Schedule,
+    Threading, Triangle,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -49,34 +50,14 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         threading,
         penalty: PenaltyParams::default(),
     };
-    let mut rows = Vec::new();
-    let mut row = |method: &str,
-                   variant: &str,
-                   isa: &str,
-                   threads: usize,
-                   ns: f64,
-                   fb: Option<f64>,
-                   cert: Option<f64>| {
-        rows.push(Row {
-            method: method.into(),
-            variant: variant.into(),
-            isa: isa.into(),
-            threads,
-            schedule: if threads > 1 {
-                sched_name.into()
-            } else {
-                "serial".into()
-            },
-            batch: args.batch,
-            ns_per_pair: ns,
-            fallback_rate: fb,
-            certified_rate: cert,
-        })
-    };
-
-    let n = pairs.len() as f64;
-    let mut out = vec![placeholder(); pairs.len()];
-    let mut stats = vec![PenaltyStats::default(); pairs.len()];
+    // Every row is one closure over shared output buffers; the closures run in
+    // alternating rounds (one repetition of each per round) and each row is the
+    // median of its rounds. Run one after the other, this VM's speed swings of
+    // +-30% between minutes land on whole rows and distort the ratios between
+    // them; alternated, every row sees the same swings.
+    let single = pool_of(1)?;
+    let prm = PenaltyParams::default();
+    let mut measures: Vec<Measure> = Vec::new();
     for (method, fallback, variant) in [
         (Method::Brute, Fallback::WholeBatch, "exact"),
         (Method::Penalty, Fallback::WholeBatch, "simd"),
@@ -88,76 +69,141 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         ),
     ] {
         let o = opts(method, fallback);
-        let mut counts = Default::default();
-        // Output buffers allocated once: the rows time the kernels, not page faults.
-        let ns = median_ns(args.repeat, pairs.len(), || {
-            pool.install(|| {
-                counts =
-                    distance_many(&pairs, &o, &mut out, &mut stats).expect("batch size checked");
-            })
-        });
-        let fb = (method == Method::Hybrid).then(|| counts.fallback_pairs as f64 / n);
-        let cert = (method != Method::Brute).then(|| counts.certified as f64 / n);
-        row(method.name(), variant, isa.name(), threads, ns, fb, cert);
+        let (pool, pairs) = (&pool, &pairs);
+        measures.push(Measure::new(
+            method.name(),
+            variant,
+            isa.name(),
+            threads,
+            Box::new(move |out, stats| {
+                Some(
+                    pool.install(|| {
+                        distance_many(pairs, &o, out, stats).expect("batch size checked")
+                    }),
+                )
+            }),
+        ));
     }
-
     // SIMD against scalar: one thread, the same kernel.
-    let prm = PenaltyParams::default();
-    for chosen in [isa, Isa::Baseline] {
-        let ns = median_ns(args.repeat, pairs.len(), || {
-            penalty_many_on(&pairs, args.batch, &prm, chosen, &mut out, &mut stats).expect("batch");
-        });
-        row(
+    let isas: &[Isa] = if isa == Isa::Baseline {
+        &[Isa::Baseline]
+    } else {
+        &[isa, Isa::Baseline]
+    };
+    for &chosen in isas {
+        let (pairs, batch) = (&pairs, args.batch);
+        measures.push(Measure::new(
             "penalty",
             "simd, 1 thread",
             chosen.name(),
             1,
-            ns,
-            None,
-            None,
-        );
-        if chosen == Isa::Baseline {
-            break;
-        }
+            Box::new(move |out, stats| {
+                penalty_many_on(pairs, batch, &prm, chosen, out, stats).expect("batch");
+                None
+            }),
+        ));
     }
-    let ns = median_ns(args.repeat, pairs.len(), || {
-        for (a, b) in &pairs {
-            std::hint::black_box(penalty_scalar(a, b, &prm));
-        }
-    });
-    row("penalty", "scalar, 1 thread", "baseline", 1, ns, None, None);
-
+    measures.push(Measure::new(
+        "penalty",
+        "scalar, 1 thread",
+        "baseline",
+        1,
+        Box::new(|_, _| {
+            for (a, b) in &pairs {
+                std::hint::black_box(penalty_scalar(a, b, &prm));
+            }
+            None
+        }),
+    ));
     // Brute force: SIMD batches against the scalar routine, one thread.
-    let ns = median_ns(args.repeat, pairs.len(), || {
-        dem::distance::distance_triangle_triangle_many(&pairs, &mut out);
-    });
-    row("brute", "simd, 1 thread", isa.name(), 1, ns, None, None);
-    let ns = median_ns(args.repeat, pairs.len(), || {
-        for (a, b) in &pairs {
-            std::hint::black_box(dem::distance::distance_triangle_triangle(a, b));
-        }
-    });
-    row("brute", "scalar, 1 thread", "baseline", 1, ns, None, None);
-
-    // Thread scaling of the hybrid, measured in the same run.
+    measures.push(Measure::new(
+        "brute",
+        "simd, 1 thread",
+        isa.name(),
+        1,
+        Box::new(|out, _| {
+            dem::distance::distance_triangle_triangle_many(&pairs, out);
+            None
+        }),
+    ));
+    measures.push(Measure::new(
+        "brute",
+        "scalar, 1 thread",
+        "baseline",
+        1,
+        Box::new(|_, _| {
+            for (a, b) in &pairs {
+                std::hint::black_box(dem::distance::distance_triangle_triangle(a, b));
+            }
+            None
+        }),
+    ));
+    // Thread scaling of the hybrid, measured in the same rounds.
     if threads > 1 {
-        let single = pool_of(1)?;
         let o = opts(Method::Hybrid, Fallback::WholeBatch);
-        let ns = median_ns(args.repeat, pairs.len(), || {
-            single.install(|| {
-                distance_many(&pairs, &o, &mut out, &mut stats).expect("batch");
-            })
-        });
-        row(
+        let (single, pairs) = (&single, &pairs);
+        measures.push(Measure::new(
             "hybrid",
             "whole-batch fallback",
             isa.name(),
             1,
-            ns,
-            None,
-            None,
-        );
+            Box::new(move |out, stats| {
+                Some(single.install(|| distance_many(pairs, &o, out, stats).expect("batch")))
+            }),
+        ));
     }
+
+    // Output buffers allocated once: the rows time the kernels, not page faults.
+    let mut out = vec![placeholder(); pairs.len()];
+    let mut stats = vec![PenaltyStats::default(); pairs.len()];
+    let rounds = args.repeat.max(1);
+    let bar = ProgressBar::new((measures.len() * (rounds + 1)) as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed}").expect("template"),
+    );
+    // Round 0 is the warm-up.
+    for round in 0..=rounds {
+        for m in &mut measures {
+            let start = Instant::now();
+            let counts = (m.run)(&mut out, &mut stats);
+            let ns = start.elapsed().as_secs_f64() * 1e9 / pairs.len().max(1) as f64;
+            if round > 0 {
+                m.times.push(ns);
+            }
+            m.counts = counts.or(m.counts);
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    let n = pairs.len() as f64;
+    let rows: Vec<Row> = measures
+        .into_iter()
+        .map(|mut m| {
+            m.times.sort_by(f64::total_cmp);
+            let hybrid = m.method == "hybrid" && m.threads == threads;
+            Row {
+                schedule: if m.threads > 1 {
+                    sched_name.into()
+                } else {
+                    "serial".into()
+                },
+                batch: args.batch,
+                ns_per_pair: m.times[m.times.len() / 2],
+                fallback_rate: m
+                    .counts
+                    .filter(|_| hybrid)
+                    .map(|c| c.fallback_pairs as f64 / n),
+                certified_rate: m
+                    .counts
+                    .filter(|_| m.method != "brute")
+                    .map(|c| c.certified as f64 / n),
+                method: m.method.into(),
+                variant: m.variant.into(),
+                isa: m.isa.into(),
+                threads: m.threads,
+            }
+        })
+        .collect();
 
     if args.json {
         println!(
@@ -365,6 +411,38 @@ fn rel_errors(pairs: &[(Triangle, Triangle)], got: &[Closest], exact: &[Closest]
             (g.distance - e.distance).abs() / pair_scale(a, b).max(f64::MIN_POSITIVE)
         })
         .collect()
+}
+
+/// One row of the benchmark: what to run and what it measured.
+struct Measure<'a> {
+    method: &'static str,
+    variant: &'static str,
+    isa: &'static str,
+    threads: usize,
+    /// Runs once over all pairs; returns the hybrid's counts where there are any.
+    run: Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>,
+    times: Vec<f64>,
+    counts: Option<Counts>,
+}
+
+impl<'a> Measure<'a> {
+    fn new(
+        method: &'static str,
+        variant: &'static str,
+        isa: &'static str,
+        threads: usize,
+        run: Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>,
+    ) -> Self {
+        Measure {
+            method,
+            variant,
+            isa,
+            threads,
+            run,
+            times: Vec::new(),
+            counts: None,
+        }
+    }
 }
 
 /// Median over `repeat` runs (after one warm-up run) of the time per pair, in ns.
