@@ -413,14 +413,17 @@ fn rel_errors(pairs: &[(Triangle, Triangle)], got: &[Closest], exact: &[Closest]
         .collect()
 }
 
+/// Runs once over all pairs, writing into the shared buffers; returns the
+/// hybrid's counts where there are any.
+type RunOnce<'a> = Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>;
+
 /// One row of the benchmark: what to run and what it measured.
 struct Measure<'a> {
     method: &'static str,
     variant: &'static str,
     isa: &'static str,
     threads: usize,
-    /// Runs once over all pairs; returns the hybrid's counts where there are any.
-    run: Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>,
+    run: RunOnce<'a>,
     times: Vec<f64>,
     counts: Option<Counts>,
 }
@@ -431,7 +434,7 @@ impl<'a> Measure<'a> {
         variant: &'static str,
         isa: &'static str,
         threads: usize,
-        run: Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>,
+        run: RunOnce<'a>,
     ) -> Self {
         Measure {
             method,

@@ -10,6 +10,9 @@
 //! no operation is contracted or reordered, so answers agree with the scalar
 //! brute force bit for bit on the same machine (the tests check it).
 
+// Index loops over the lanes are the shape the vectoriser recognises best.
+#![allow(clippy::needless_range_loop)]
+
 use super::isa::Isa;
 use super::{Closest, Solver, Triangle};
 use glam::DVec3;
