@@ -24,25 +24,34 @@ use super::lanes::{F, M, V3};
 use super::Triangle;
 use glam::DVec3;
 
-/// A lower bound on the distance between A = (0, u0, u1) and
-/// B = (b0, b0 - u2, b0 - u3) per lane, from their separation along `m` (0 if
-/// the projections overlap or m is zero or not finite).
+/// The gap between the projections onto `m` of A = (0, u0, u1) and
+/// B = (b0, b0 - u2, b0 - u3) per lane, times |m| (m need not be a unit vector;
+/// negative where they overlap).
 #[inline(always)]
-pub(crate) fn separation_along<const N: usize>(m: V3<N>, u: &[V3<N>; 4], b0: V3<N>) -> F<N> {
+fn gap_along<const N: usize>(m: V3<N>, u: &[V3<N>; 4], b0: V3<N>) -> F<N> {
     let zero = F::splat(0.0);
     let (a1, a2) = (m.dot(u[0]), m.dot(u[1]));
     let pb0 = m.dot(b0);
     let (pb1, pb2) = (pb0 - m.dot(u[2]), pb0 - m.dot(u[3]));
     let (lo_a, hi_a) = (zero.min(a1).min(a2), zero.max(a1).max(a2));
     let (lo_b, hi_b) = (pb0.min(pb1).min(pb2), pb0.max(pb1).max(pb2));
-    let gap = (lo_a - hi_b).max(lo_b - hi_a);
+    (lo_a - hi_b).max(lo_b - hi_a)
+}
+
+/// A lower bound on the distance between A and B (as in [`gap_along`]) per
+/// lane, from their separation along `m` (0 if the projections overlap or m is
+/// zero or not finite).
+#[inline(always)]
+pub(crate) fn separation_along<const N: usize>(m: V3<N>, u: &[V3<N>; 4], b0: V3<N>) -> F<N> {
+    let zero = F::splat(0.0);
+    let gap = gap_along(m, u, b0);
     let mm = m.dot(m);
     // A zero direction proves nothing; NaN fails the comparisons.
     (mm.gt(zero) & gap.gt(zero)).select(gap / mm.sqrt(), zero)
 }
 
 /// Per lane, whether the separation along `m` proves that the distance
-/// between A = (0, u0, u1) and B = (b0, b0 - u2, b0 - u3) is at least `need`:
+/// between A and B (as in [`gap_along`]) is at least `need`:
 /// [`separation_along`] >= need, decided without its square root and division
 /// (gap^2 >= need^2 |m|^2 for gap > 0), which are long-latency vector
 /// instructions. A need <= 0 holds trivially; NaN never proves anything.
@@ -54,12 +63,7 @@ pub(crate) fn separation_proves<const N: usize>(
     need: F<N>,
 ) -> M<N> {
     let zero = F::splat(0.0);
-    let (a1, a2) = (m.dot(u[0]), m.dot(u[1]));
-    let pb0 = m.dot(b0);
-    let (pb1, pb2) = (pb0 - m.dot(u[2]), pb0 - m.dot(u[3]));
-    let (lo_a, hi_a) = (zero.min(a1).min(a2), zero.max(a1).max(a2));
-    let (lo_b, hi_b) = (pb0.min(pb1).min(pb2), pb0.max(pb1).max(pb2));
-    let gap = (lo_a - hi_b).max(lo_b - hi_a);
+    let gap = gap_along(m, u, b0);
     need.le(zero) | (gap.gt(zero) & (gap * gap).ge(need * need * m.dot(m)))
 }
 
