@@ -17,13 +17,15 @@ use super::{Effect, Forces, StepContext};
 use crate::material::damping_ratio;
 use crate::world::World;
 use glam::DVec3;
-use std::collections::HashMap;
 
 pub struct FrictionEffect {
     mu: Vec<f64>,
     stiffness: Vec<f64>,
     restitution: Vec<f64>,
-    history: HashMap<(usize, usize), DVec3>,
+    /// ξ per body pair in contact at the last step, sorted by pair, as the
+    /// contacts come: looked up by one merge-walk per step, no hashing.
+    history: Vec<((usize, usize), DVec3)>,
+    next: Vec<((usize, usize), DVec3)>,
 }
 
 impl FrictionEffect {
@@ -32,7 +34,8 @@ impl FrictionEffect {
             mu: world.per_body(|m| m.friction),
             stiffness: world.per_body(|m| m.stiffness),
             restitution: world.per_body(|m| m.restitution),
-            history: HashMap::new(),
+            history: Vec::new(),
+            next: Vec::new(),
         }
     }
 }
@@ -43,10 +46,11 @@ impl Effect for FrictionEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        let mut next = HashMap::new();
+        self.next.clear();
+        let mut old = self.history.iter().peekable();
         let contacts = &ctx.contacts;
         let mut start = 0;
-        // Contacts come grouped by body pair.
+        // Contacts come grouped by body pair, pairs in increasing order (`body_contacts`).
         while start < contacts.len() {
             let (a, b) = (contacts[start].a, contacts[start].b);
             let mut end = start;
@@ -68,7 +72,8 @@ impl Effect for FrictionEffect {
             let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
             let v_rel = ba.velocity_at(c) - bb.velocity_at(c);
             let v_t = v_rel - n * v_rel.dot(n);
-            let mut xi = self.history.get(&(a, b)).copied().unwrap_or(DVec3::ZERO);
+            while old.next_if(|h| h.0 < (a, b)).is_some() {}
+            let mut xi = old.next_if(|h| h.0 == (a, b)).map_or(DVec3::ZERO, |h| h.1);
             // Turn the stored displacement into the current tangent plane, keeping its length.
             let len = xi.length();
             xi -= n * xi.dot(n);
@@ -91,9 +96,10 @@ impl Effect for FrictionEffect {
             }
             forces.add_at(a, ba.x, c, f_t);
             forces.add_at(b, bb.x, c, -f_t);
-            next.insert((a, b), xi);
+            debug_assert!(self.next.last().is_none_or(|h| h.0 < (a, b)));
+            self.next.push(((a, b), xi));
             ctx.stats.tangential_evaluations += 1;
         }
-        self.history = next;
+        std::mem::swap(&mut self.history, &mut self.next);
     }
 }
