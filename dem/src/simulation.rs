@@ -12,6 +12,11 @@ use rayon::prelude::*;
 /// Bodies per parallel task of the integration.
 const INTEGRATION_GRAIN: usize = 32;
 
+/// Bodies per parallel task of the closing half kick: a few additions per
+/// body, so a scene of fewer bodies keeps it on one thread (cheaper than
+/// handing half to another).
+const KICK_GRAIN: usize = 1024;
+
 /// A running simulation.
 pub struct Simulation {
     pub world: World,
@@ -94,7 +99,7 @@ impl Simulation {
             .bodies
             .par_iter_mut()
             .enumerate()
-            .with_min_len(INTEGRATION_GRAIN)
+            .with_min_len(KICK_GRAIN)
             .for_each(|(i, b)| {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
             });

@@ -108,7 +108,7 @@ pub struct Detector {
     set: TriangleSet,
     /// One per task of a pass, kept between passes for their capacity.
     tasks: Vec<Task>,
-    found: Vec<TriangleContact>,
+    broad: broad_phase::BroadPhase,
 }
 
 /// What one parallel task of a detection pass owns: its share of the body
@@ -123,6 +123,8 @@ struct Task {
     stats: Vec<PenaltyStats>,
     found: Vec<TriangleContact>,
     counts: Counts,
+    contacts: Vec<Contact>,
+    deep: u64,
 }
 
 impl Detector {
@@ -136,23 +138,26 @@ impl Detector {
     ) -> DetectionStats {
         let mut set = std::mem::take(&mut self.set);
         set.update_from_world(world, halos);
-        let mut found = std::mem::take(&mut self.found);
-        found.clear();
-        let mut stats =
-            self.triangle_contacts(world, &set, halos, opts, Phase::LocalLocal, &mut found);
-        (stats.contacts, stats.deep_contacts) = body_contacts(&mut found, halos, contacts);
+        let (mut stats, n_tasks) =
+            self.run_tasks(world, &set, halos, opts, Phase::LocalLocal, true);
         self.set = set;
-        self.found = found;
+        // Each task merged its own body pairs (one phase: a body pair's
+        // triangle contacts all come from one task), and the tasks hold
+        // consecutive shares of the sorted body pairs, so joining their
+        // contacts in task order gives what `body_contacts` would.
+        contacts.clear();
+        for task in &self.tasks[..n_tasks] {
+            contacts.extend_from_slice(&task.contacts);
+            stats.deep_contacts += task.deep;
+        }
+        stats.contacts = contacts.len() as u64;
         stats
     }
 
-    /// Appends to `found` the triangle contacts of one phase on `set`, in no
-    /// particular order ([`body_contacts`] sorts). Returns the pass's counts
-    /// (contacts counted after merging by [`body_contacts`], so 0 here).
-    ///
-    /// Body pairs are shared among tasks as the kernel's schedule says:
-    /// static, one contiguous share per thread; dynamic, `grain` body pairs
-    /// per task, taken on demand.
+    /// Appends to `found` the triangle contacts of one phase on `set`, to be
+    /// merged per body pair by [`body_contacts`] once all phases are in.
+    /// Returns the pass's counts (contacts counted after merging by
+    /// [`body_contacts`], so 0 here).
     pub fn triangle_contacts(
         &mut self,
         world: &World,
@@ -162,7 +167,30 @@ impl Detector {
         phase: Phase,
         found: &mut Vec<TriangleContact>,
     ) -> DetectionStats {
-        let body_pairs = broad_phase::body_pairs(set, &world.bodies, phase);
+        let (stats, n_tasks) = self.run_tasks(world, set, halos, opts, phase, false);
+        for task in &self.tasks[..n_tasks] {
+            found.extend_from_slice(&task.found);
+        }
+        stats
+    }
+
+    /// Runs the tasks of one phase; returns the pass's counts and how many of
+    /// `self.tasks` ran. With `merge`, each task also merges its triangle
+    /// contacts into body contacts.
+    ///
+    /// Body pairs are shared among tasks as the kernel's schedule says:
+    /// static, one contiguous share per thread; dynamic, `grain` body pairs
+    /// per task, taken on demand.
+    fn run_tasks(
+        &mut self,
+        world: &World,
+        set: &TriangleSet,
+        halos: &[f64],
+        opts: &Options,
+        phase: Phase,
+        merge: bool,
+    ) -> (DetectionStats, usize) {
+        let body_pairs = self.broad.body_pairs(set, &world.bodies, phase);
         let per_task = match opts.threading.schedule {
             Schedule::Static => body_pairs.len().div_ceil(rayon::current_num_threads()),
             Schedule::Dynamic => opts.threading.grain,
@@ -176,28 +204,30 @@ impl Detector {
             .par_chunks(per_task)
             .zip(self.tasks[..n_tasks].par_iter_mut())
             .with_max_len(1)
-            .for_each(|(share, task)| task.run(set, halos, opts, phase, share));
+            .for_each(|(share, task)| task.run(set, halos, opts, phase, share, merge));
         let mut triangle_pairs = 0;
         let mut counts = Counts::default();
         for task in &self.tasks[..n_tasks] {
-            found.extend_from_slice(&task.found);
             triangle_pairs += task.pairs.len();
             counts = counts + task.counts;
         }
-        DetectionStats {
+        let stats = DetectionStats {
             body_pairs: body_pairs.len() as u64,
             triangle_pairs: triangle_pairs as u64,
             fallback_pairs: counts.fallback_pairs as u64,
             contacts: 0,
             deep_contacts: 0,
-        }
+        };
+        (stats, n_tasks)
     }
 }
 
 impl Task {
     /// Culls the triangle pairs of `body_pairs` (group indices of `set`) by
     /// inflated boxes and face planes, computes their distances and keeps
-    /// those within reach.
+    /// those within reach, sorted as [`body_contacts`] wants them; with
+    /// `merge`, merges those into body contacts too (in parallel with the
+    /// other tasks rather than after them all).
     fn run(
         &mut self,
         set: &TriangleSet,
@@ -205,6 +235,7 @@ impl Task {
         opts: &Options,
         phase: Phase,
         body_pairs: &[(usize, usize)],
+        merge: bool,
     ) {
         let groups = set.groups();
         self.owners.clear();
@@ -267,6 +298,13 @@ impl Task {
                 });
             }
         }
+        self.found.sort_unstable_by_key(merge_order);
+        self.contacts.clear();
+        self.deep = if merge {
+            append_body_contacts(&self.found, halos, &mut self.contacts)
+        } else {
+            0
+        };
     }
 }
 
@@ -279,8 +317,26 @@ pub fn body_contacts(
     halos: &[f64],
     contacts: &mut Vec<Contact>,
 ) -> (u64, u64) {
-    found.sort_unstable_by_key(|t| (t.a.body, t.b.body, t.b.index, t.a.index));
+    found.sort_unstable_by_key(merge_order);
     contacts.clear();
+    let deep = append_body_contacts(found, halos, contacts);
+    (contacts.len() as u64, deep)
+}
+
+/// The order in which triangle contacts are merged: a total order (no two
+/// triangle contacts share a key), so merging never depends on how they were found.
+fn merge_order(t: &TriangleContact) -> (u32, u32, u32, u32) {
+    (t.a.body, t.b.body, t.b.index, t.a.index)
+}
+
+/// Appends the body contacts of `found` (sorted by [`merge_order`], all of
+/// each body pair's triangle contacts present) to `contacts`; returns the
+/// number of deep ones.
+fn append_body_contacts(
+    found: &[TriangleContact],
+    halos: &[f64],
+    contacts: &mut Vec<Contact>,
+) -> u64 {
     let mut deep = 0u64;
     for group in found.chunk_by(|x, y| (x.a.body, x.b.body) == (y.a.body, y.b.body)) {
         let (a, b) = (group[0].a.body as usize, group[0].b.body as usize);
@@ -314,7 +370,7 @@ pub fn body_contacts(
             c.share = share;
         }
     }
-    (contacts.len() as u64, deep)
+    deep
 }
 
 /// Whether the plane (n, d) of one triangle has all of `t` on one side, farther

@@ -74,8 +74,10 @@ pub struct TriangleSet {
     poses: Vec<Option<(DVec3, DQuat, f64)>>,
 }
 
-/// Bodies per parallel task when the set follows the world.
-const UPDATE_GRAIN: usize = 16;
+/// Bodies per parallel task when the set follows the world: small, because
+/// the work per body is uneven (static bodies cost nothing after the first
+/// step and are often numbered last, so coarse shares leave a thread idle).
+const UPDATE_GRAIN: usize = 4;
 
 impl TriangleSet {
     /// Every triangle of every body, owned: the one-node set. Only bodies that

@@ -14,16 +14,15 @@
 use super::{Effect, Forces, StepContext};
 use crate::contact::Detector;
 use crate::distance::Options;
-use crate::material::damping_ratio;
+use crate::material::MaterialPairs;
 use crate::world::World;
 
 pub struct ContactEffect {
     detector: Detector,
     pub kernel: Options,
-    /// Per body: halo, stiffness, restitution.
+    /// Per body: halo.
     halo: Vec<f64>,
-    stiffness: Vec<f64>,
-    restitution: Vec<f64>,
+    laws: MaterialPairs,
     /// Spring energy of the last evaluation (for energy checks).
     energy: f64,
 }
@@ -34,8 +33,7 @@ impl ContactEffect {
             detector: Detector::default(),
             kernel,
             halo: world.per_body(|m| m.halo),
-            stiffness: world.per_body(|m| m.stiffness),
-            restitution: world.per_body(|m| m.restitution),
+            laws: MaterialPairs::new(&world.materials),
             energy: 0.0,
         }
     }
@@ -55,11 +53,10 @@ impl Effect for ContactEffect {
         self.energy = 0.0;
         for c in &ctx.contacts {
             let (ba, bb) = (&world.bodies[c.a], &world.bodies[c.b]);
-            let (ka, kb) = (self.stiffness[c.a], self.stiffness[c.b]);
-            let k = ka * kb / (ka + kb);
+            let law = self.laws.get(ba.material, bb.material);
+            let k = law.stiffness;
             let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-            let e = 0.5 * (self.restitution[c.a] + self.restitution[c.b]);
-            let damping = 2.0 * damping_ratio(e) * (m * k).sqrt();
+            let damping = 2.0 * law.damping_ratio * (m * k).sqrt();
             let v_n = (ba.velocity_at(c.point) - bb.velocity_at(c.point)).dot(c.normal);
             let n = c.share as f64;
             let f = (k * c.depth - damping * v_n) / n;

@@ -14,14 +14,12 @@
 //! separates forgets its history.
 
 use super::{Effect, Forces, StepContext};
-use crate::material::damping_ratio;
+use crate::material::MaterialPairs;
 use crate::world::World;
 use glam::DVec3;
 
 pub struct FrictionEffect {
-    mu: Vec<f64>,
-    stiffness: Vec<f64>,
-    restitution: Vec<f64>,
+    laws: MaterialPairs,
     /// ξ per body pair in contact at the last step, sorted by pair, as the
     /// contacts come: looked up by one merge-walk per step, no hashing.
     history: Vec<((usize, usize), DVec3)>,
@@ -31,9 +29,7 @@ pub struct FrictionEffect {
 impl FrictionEffect {
     pub fn new(world: &World) -> Self {
         FrictionEffect {
-            mu: world.per_body(|m| m.friction),
-            stiffness: world.per_body(|m| m.stiffness),
-            restitution: world.per_body(|m| m.restitution),
+            laws: MaterialPairs::new(&world.materials),
             history: Vec::new(),
             next: Vec::new(),
         }
@@ -81,12 +77,11 @@ impl Effect for FrictionEffect {
                 xi = dir * len;
             }
             xi += v_t * ctx.dt;
-            let (ka, kb) = (self.stiffness[a], self.stiffness[b]);
-            let k_t = (2.0 / 7.0) * (ka * kb / (ka + kb));
-            let mu = (self.mu[a] * self.mu[b]).sqrt();
+            let law = self.laws.get(ba.material, bb.material);
+            let k_t = (2.0 / 7.0) * law.stiffness;
+            let mu = law.friction;
             let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-            let zeta = damping_ratio(0.5 * (self.restitution[a] + self.restitution[b]));
-            let c_t = 2.0 * zeta * (m * k_t).sqrt();
+            let c_t = 2.0 * law.damping_ratio * (m * k_t).sqrt();
             let mut f_t = -xi * k_t - v_t * c_t;
             let cap = mu * f_n;
             let mag = f_t.length();
