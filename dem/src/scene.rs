@@ -123,15 +123,20 @@ struct KernelSpec {
     batch: usize,
     #[serde(default)]
     fallback_failed_pairs: bool,
-    #[serde(default)]
-    dynamic_schedule: bool,
-    /// Body pairs per task of the dynamic schedule.
+    /// How body pairs are shared among threads: static, dynamic or guided.
+    #[serde(default = "default_schedule")]
+    schedule: String,
+    /// Body pairs per task of the dynamic schedule, smallest task of the guided one.
     #[serde(default = "default_grain")]
     grain: usize,
 }
 
 fn default_grain() -> usize {
     Threading::default().grain
+}
+
+fn default_schedule() -> String {
+    Threading::default().schedule.name().into()
 }
 
 fn default_method() -> String {
@@ -546,6 +551,10 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                 .method
                 .parse()
                 .map_or_else(|e| ctx.err(span.clone(), e), Ok)?;
+            let schedule: Schedule = k
+                .schedule
+                .parse()
+                .map_or_else(|e| ctx.err(span.clone(), e), Ok)?;
             if !crate::distance::penalty::BATCH_SIZES.contains(&k.batch) {
                 return ctx.err(
                     span,
@@ -568,11 +577,7 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                     Fallback::WholeBatch
                 },
                 threading: Threading {
-                    schedule: if k.dynamic_schedule {
-                        Schedule::Dynamic
-                    } else {
-                        Schedule::Static
-                    },
+                    schedule,
                     grain: k.grain,
                 },
             }

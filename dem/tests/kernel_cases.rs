@@ -112,3 +112,31 @@ fn penalty_is_finite_and_never_wrong_when_it_claims_convergence() {
     let (n, conv, _) = per_category["random_unit"];
     assert!(conv * 2 > n, "only {conv} of {n} random pairs certified");
 }
+
+#[test]
+fn every_schedule_on_every_pool_gives_the_one_thread_answer() {
+    use dem::distance::{Schedule, Threading};
+    let cases = common::load_cases();
+    let pairs = pairs(&cases);
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let reference = one.install(|| distances(&pairs, &Options::default()).unwrap());
+    for schedule in [Schedule::Static, Schedule::Dynamic, Schedule::Guided] {
+        for threads in [2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let opts = Options {
+                threading: Threading { schedule, grain: 3 },
+                ..Options::default()
+            };
+            let got = pool.install(|| distances(&pairs, &opts).unwrap());
+            // Bitwise: the shares change who computes a pair, never how.
+            assert_eq!(got.0, reference.0, "{schedule:?}, {threads} threads");
+            assert_eq!(got.2, reference.2, "{schedule:?}, {threads} threads");
+        }
+    }
+}

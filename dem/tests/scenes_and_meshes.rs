@@ -89,7 +89,7 @@ fn a_step_above_the_stable_one_is_refused_or_warned() {
 
 #[test]
 fn kernel_settings_are_read_and_bad_ones_refused() {
-    let text = format!("{BASE}\n[kernel]\ndynamic_schedule = true\ngrain = 4\nbatch = 16\n");
+    let text = format!("{BASE}\n[kernel]\nschedule = \"dynamic\"\ngrain = 4\nbatch = 16\n");
     let s = parse(&text).unwrap();
     assert_eq!(s.kernel.threading.grain, 4);
     assert_eq!(
@@ -103,6 +103,14 @@ fn kernel_settings_are_read_and_bad_ones_refused() {
     assert_eq!(e.line, 22, "{e}");
     let e = parse(&text.replace("batch = 16", "batch = 12")).unwrap_err();
     assert!(e.cause.contains("kernel.batch"), "{e}");
+    let e = parse(&text.replace("\"dynamic\"", "\"eager\"")).unwrap_err();
+    assert!(e.cause.contains("unknown schedule `eager`"), "{e}");
+    assert_eq!(e.line, 22, "{e}");
+    let guided = parse(&text.replace("\"dynamic\"", "\"guided\"")).unwrap();
+    assert_eq!(
+        guided.kernel.threading.schedule,
+        dem::distance::Schedule::Guided
+    );
 }
 
 #[test]

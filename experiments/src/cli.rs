@@ -142,10 +142,10 @@ pub struct KernelsArgs {
     /// Threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// static or dynamic.
+    /// static, dynamic or guided.
     #[arg(long, default_value = "static")]
     pub schedule: Schedule,
-    /// Batches per chunk with dynamic scheduling.
+    /// Batches per share with dynamic scheduling (smallest share with guided).
     #[arg(long, default_value_t = 16)]
     pub grain: usize,
     /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.

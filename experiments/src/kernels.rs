@@ -9,8 +9,8 @@ use crate::error::{CliError, CliResult};
 use crate::plot;
 use dem::distance::{
     distance_many, distances, pair_scale, penalty_many_on, penalty_scalar, random_unit_pairs,
-    Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams, PenaltyStats, Schedule,
-    Threading, Triangle,
+    Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams, PenaltyStats, Threading,
+    Triangle,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -38,7 +38,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     let threads = pool.current_num_threads();
     let isa = Isa::detect();
     let sched = args.schedule;
-    let sched_name = schedule_name(sched);
+    let sched_name = sched.name();
     let threading = Threading {
         schedule: sched,
         grain: args.grain,
@@ -471,13 +471,6 @@ fn pool_of(threads: usize) -> CliResult<rayon::ThreadPool> {
         .num_threads(threads)
         .build()
         .map_err(|e| CliError::runtime(format!("thread pool: {e}")))
-}
-
-fn schedule_name(s: Schedule) -> &'static str {
-    match s {
-        Schedule::Static => "static",
-        Schedule::Dynamic => "dynamic",
-    }
 }
 
 fn placeholder() -> Closest {

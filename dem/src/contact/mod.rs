@@ -37,7 +37,7 @@ pub use bounds::Bounds;
 pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
 use crate::distance::{
-    distance_many_serial, Closest, Counts, Options, PenaltyStats, Schedule, Solver, Triangle,
+    distance_many_serial, Closest, Counts, Options, PenaltyStats, Solver, Triangle,
 };
 use crate::world::World;
 use glam::DVec3;
@@ -178,9 +178,8 @@ impl Detector {
     /// `self.tasks` ran. With `merge`, each task also merges its triangle
     /// contacts into body contacts.
     ///
-    /// Body pairs are shared among tasks as the kernel's schedule says:
-    /// static, one contiguous share per thread; dynamic, `grain` body pairs
-    /// per task, taken on demand.
+    /// Body pairs are shared among tasks as the kernel's schedule says
+    /// ([`Threading::share_lengths`](crate::distance::Threading::share_lengths)).
     fn run_tasks(
         &mut self,
         world: &World,
@@ -191,19 +190,24 @@ impl Detector {
         merge: bool,
     ) -> (DetectionStats, usize) {
         let body_pairs = self.broad.body_pairs(set, &world.bodies, phase);
-        let per_task = match opts.threading.schedule {
-            Schedule::Static => body_pairs.len().div_ceil(rayon::current_num_threads()),
-            Schedule::Dynamic => opts.threading.grain,
-        }
-        .max(1);
-        let n_tasks = body_pairs.len().div_ceil(per_task);
+        let lengths = opts
+            .threading
+            .share_lengths(body_pairs.len(), rayon::current_num_threads());
+        let n_tasks = lengths.len();
         if self.tasks.len() < n_tasks {
             self.tasks.resize_with(n_tasks, Task::default);
         }
-        body_pairs
-            .par_chunks(per_task)
-            .zip(self.tasks[..n_tasks].par_iter_mut())
-            .with_max_len(1)
+        let mut rest = body_pairs;
+        let shares = lengths.iter().map(|&len| {
+            let (share, tail) = rest.split_at(len);
+            rest = tail;
+            share
+        });
+        // Tasks taken in order by whichever thread is free (rayon's own
+        // splitting would hand out halves of the list, whatever they cost).
+        shares
+            .zip(self.tasks[..n_tasks].iter_mut())
+            .par_bridge()
             .for_each(|(share, task)| task.run(set, halos, opts, phase, share, merge));
         let mut triangle_pairs = 0;
         let mut counts = Counts::default();

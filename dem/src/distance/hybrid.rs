@@ -59,14 +59,21 @@ pub enum Fallback {
     FailedPairs,
 }
 
-/// How batches are spread over threads.
+/// How work (batches of pairs, or body pairs in contact detection) is cut
+/// into consecutive shares and spread over threads. Shares of the dynamic and
+/// guided schedules are taken in order, each by whichever thread is free.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Schedule {
-    /// Equal contiguous chunks, one per thread (OpenMP `schedule(static)`).
+    /// Equal shares, one per thread (OpenMP `schedule(static)`).
     #[default]
     Static,
-    /// Chunks of `grain` batches taken on demand (OpenMP `schedule(dynamic, grain)`).
+    /// Shares of `grain` items taken on demand (OpenMP `schedule(dynamic, grain)`).
     Dynamic,
+    /// Shares that shrink as the work runs out: 1/(2 threads) of what is left,
+    /// at least `grain` items, taken on demand (OpenMP `schedule(guided,
+    /// grain)` with half its share). Large shares first keep the kernel's
+    /// batches full; small ones last even out the finish.
+    Guided,
 }
 
 impl std::str::FromStr for Schedule {
@@ -75,7 +82,8 @@ impl std::str::FromStr for Schedule {
         match s {
             "static" => Ok(Schedule::Static),
             "dynamic" => Ok(Schedule::Dynamic),
-            _ => Err(format!("unknown schedule `{s}` (static, dynamic)")),
+            "guided" => Ok(Schedule::Guided),
+            _ => Err(format!("unknown schedule `{s}` (static, dynamic, guided)")),
         }
     }
 }
@@ -85,8 +93,40 @@ impl std::str::FromStr for Schedule {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Threading {
     pub schedule: Schedule,
-    /// Batches per chunk for dynamic scheduling.
+    /// Batches (body pairs, in contact detection) per share of the dynamic
+    /// schedule, and the smallest share of the guided one.
     pub grain: usize,
+}
+
+impl Schedule {
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::Static => "static",
+            Schedule::Dynamic => "dynamic",
+            Schedule::Guided => "guided",
+        }
+    }
+}
+
+impl Threading {
+    /// Lengths of the consecutive shares `n` items are cut into for `threads`
+    /// threads: they add up to `n`, none is empty.
+    pub fn share_lengths(&self, n: usize, threads: usize) -> Vec<usize> {
+        let (grain, threads) = (self.grain.max(1), threads.max(1));
+        let mut lengths = Vec::new();
+        let mut rest = n;
+        while rest > 0 {
+            let len = match self.schedule {
+                Schedule::Static => n.div_ceil(threads),
+                Schedule::Dynamic => grain,
+                Schedule::Guided => (rest / (2 * threads)).max(grain),
+            }
+            .min(rest);
+            lengths.push(len);
+            rest -= len;
+        }
+        lengths
+    }
 }
 
 impl Default for Threading {
@@ -156,17 +196,24 @@ pub fn distance_many(
 ) -> Result<Counts, UnsupportedBatch> {
     check_arguments(pairs.len(), opts, out.len(), stats.len())?;
     let n_batches = pairs.len().div_ceil(opts.batch);
-    let chunk_batches = match opts.threading.schedule {
-        Schedule::Static => n_batches.div_ceil(rayon::current_num_threads()).max(1),
-        Schedule::Dynamic => opts.threading.grain.max(1),
-    };
-    let chunk = chunk_batches * opts.batch;
-    let counts = pairs
-        .par_chunks(chunk)
-        .zip(out.par_chunks_mut(chunk))
-        .zip(stats.par_chunks_mut(chunk))
-        .with_max_len(1)
-        .map(|((p, o), s)| serial_chunk(p, opts, o, s))
+    let shares = opts
+        .threading
+        .share_lengths(n_batches, rayon::current_num_threads());
+    let (mut p, mut o, mut s) = (pairs, out, stats);
+    let mut work = Vec::with_capacity(shares.len());
+    for batches in shares {
+        let len = (batches * opts.batch).min(p.len());
+        let ((p0, p1), (o0, o1), (s0, s1)) =
+            (p.split_at(len), o.split_at_mut(len), s.split_at_mut(len));
+        work.push((p0, o0, s0));
+        (p, o, s) = (p1, o1, s1);
+    }
+    // Shares taken in order by whichever thread is free (rayon's own
+    // splitting would hand out halves of the list, whatever they cost).
+    let counts = work
+        .into_iter()
+        .par_bridge()
+        .map(|(p, o, s)| serial_chunk(p, opts, o, s))
         .reduce(Counts::default, |a, b| a + b);
     Ok(counts)
 }
@@ -280,4 +327,41 @@ pub fn distances(
     let mut stats = vec![PenaltyStats::default(); pairs.len()];
     let counts = distance_many(pairs, opts, &mut out, &mut stats)?;
     Ok((out, stats, counts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shares_cover_the_work_in_order_as_each_schedule_says() {
+        for schedule in [Schedule::Static, Schedule::Dynamic, Schedule::Guided] {
+            for n in [0, 1, 7, 100, 1001] {
+                for threads in [1, 2, 8] {
+                    let t = Threading { schedule, grain: 4 };
+                    let lengths = t.share_lengths(n, threads);
+                    assert_eq!(lengths.iter().sum::<usize>(), n);
+                    assert!(lengths.iter().all(|&l| l > 0));
+                    let last = lengths.len().saturating_sub(1);
+                    match schedule {
+                        Schedule::Static => assert!(lengths.len() <= threads),
+                        Schedule::Dynamic => assert!(lengths[..last].iter().all(|&l| l == 4)),
+                        Schedule::Guided => {
+                            // Shrinking, never below the grain but for the rest.
+                            assert!(lengths.windows(2).all(|w| w[0] >= w[1]));
+                            assert!(lengths[..last].iter().all(|&l| l >= 4));
+                        }
+                    }
+                }
+            }
+        }
+        let guided = Threading {
+            schedule: Schedule::Guided,
+            grain: 4,
+        };
+        assert_eq!(
+            guided.share_lengths(100, 2),
+            [25, 18, 14, 10, 8, 6, 4, 4, 4, 4, 3]
+        );
+    }
 }
