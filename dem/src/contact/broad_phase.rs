@@ -36,9 +36,10 @@ struct Entry {
     part: Part,
 }
 
-/// Sorted moving boxes per parallel task of the sweep: a sweep step costs a
-/// few box tests, so only scenes of thousands of bodies gain from splitting it.
-const SWEEP_GRAIN: usize = 512;
+/// Moving boxes per parallel task of the broad phase: each costs its sweep
+/// step and a test per static box (some 100 ns together on the development
+/// VM), so a few dozen are worth handing to another thread.
+const SWEEP_GRAIN: usize = 32;
 
 /// A moving box as the sweep reads it: its extent along the sweep axis and
 /// across it, packed so that testing a box is a few loads and no branches.
@@ -118,13 +119,24 @@ impl BroadPhase {
     ) -> &[(usize, usize)] {
         self.collect(set, bodies, phase);
         self.sort();
-        let (moving, sweep) = (&self.moving, &self.sweep);
+        let (moving, sweep, fixed) = (&self.moving, &self.sweep, &self.fixed);
+        // The pairs of moving box n: with the moving boxes after it in the
+        // sweep, and with every static box.
+        let pairs_of = |n: usize, hits: &mut Vec<u32>, pairs: &mut Vec<(usize, usize)>| {
+            sweep_from(sweep, moving, n, phase, hits, pairs);
+            let m = &moving[n].0;
+            for f in fixed {
+                if f.bounds.overlaps(&m.bounds) {
+                    pairs.extend(pair_of(f, m, phase));
+                }
+            }
+        };
         let pairs = &mut self.pairs;
         pairs.clear();
-        if sweep.len() <= grain {
+        if sweep.len() < 2 * grain {
             let mut hits = Vec::new();
             for n in 0..sweep.len() {
-                sweep_from(sweep, moving, n, phase, &mut hits, pairs);
+                pairs_of(n, &mut hits, pairs);
             }
         } else {
             let found: Vec<(usize, usize)> = (0..sweep.len())
@@ -133,7 +145,7 @@ impl BroadPhase {
                 .fold(
                     || (Vec::new(), Vec::new()),
                     |(mut hits, mut pairs), n| {
-                        sweep_from(sweep, moving, n, phase, &mut hits, &mut pairs);
+                        pairs_of(n, &mut hits, &mut pairs);
                         (hits, pairs)
                     },
                 )
@@ -143,13 +155,6 @@ impl BroadPhase {
                     a
                 });
             pairs.extend_from_slice(&found);
-        }
-        for f in &self.fixed {
-            for (m, _) in moving {
-                if f.bounds.overlaps(&m.bounds) {
-                    pairs.extend(pair_of(f, m, phase));
-                }
-            }
         }
         sort_pairs(pairs, &mut self.unsorted, &mut self.pair_counts);
         pairs

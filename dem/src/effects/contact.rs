@@ -11,11 +11,12 @@
 //! (tension) at the end of an impact, as in the linear model whose restitution
 //! is exact; it is reported as 0 to friction.
 
-use super::{Effect, Forces, StepContext};
+use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
 use crate::contact::Detector;
 use crate::distance::Options;
 use crate::material::MaterialPairs;
 use crate::world::World;
+use rayon::prelude::*;
 
 pub struct ContactEffect {
     detector: Detector,
@@ -25,6 +26,8 @@ pub struct ContactEffect {
     laws: MaterialPairs,
     /// Spring energy of the last evaluation (for energy checks).
     energy: f64,
+    /// Per contact: the force pair, the normal force, the spring energy.
+    per_contact: Vec<(PairForce, f64, f64)>,
 }
 
 impl ContactEffect {
@@ -35,6 +38,7 @@ impl ContactEffect {
             halo: world.per_body(|m| m.halo),
             laws: MaterialPairs::new(&world.materials),
             energy: 0.0,
+            per_contact: Vec::new(),
         }
     }
 }
@@ -49,21 +53,29 @@ impl Effect for ContactEffect {
             .detector
             .detect(world, &self.halo, &self.kernel, &mut ctx.contacts);
         ctx.stats.detection = det;
+        let laws = &self.laws;
+        ctx.contacts
+            .par_iter()
+            .with_min_len(FORCE_GRAIN)
+            .map(|c| {
+                let (ba, bb) = (&world.bodies[c.a], &world.bodies[c.b]);
+                let law = laws.get(ba.material, bb.material);
+                let k = law.stiffness;
+                let m = 1.0 / (ba.inv_mass + bb.inv_mass);
+                let damping = 2.0 * law.damping_ratio * (m * k).sqrt();
+                let v_n = (ba.velocity_at(c.point) - bb.velocity_at(c.point)).dot(c.normal);
+                let n = c.share as f64;
+                let f = (k * c.depth - damping * v_n) / n;
+                let pair = PairForce::new(c.a, ba.x, c.b, bb.x, c.point, c.normal * f);
+                (pair, f.max(0.0), 0.5 * k * c.depth * c.depth / n)
+            })
+            .collect_into_vec(&mut self.per_contact);
         ctx.normal_force.clear();
         self.energy = 0.0;
-        for c in &ctx.contacts {
-            let (ba, bb) = (&world.bodies[c.a], &world.bodies[c.b]);
-            let law = self.laws.get(ba.material, bb.material);
-            let k = law.stiffness;
-            let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-            let damping = 2.0 * law.damping_ratio * (m * k).sqrt();
-            let v_n = (ba.velocity_at(c.point) - bb.velocity_at(c.point)).dot(c.normal);
-            let n = c.share as f64;
-            let f = (k * c.depth - damping * v_n) / n;
-            forces.add_at(c.a, ba.x, c.point, c.normal * f);
-            forces.add_at(c.b, bb.x, c.point, -c.normal * f);
-            ctx.normal_force.push(f.max(0.0));
-            self.energy += 0.5 * k * c.depth * c.depth / n;
+        for (pair, normal_force, energy) in &self.per_contact {
+            forces.add_pair(pair);
+            ctx.normal_force.push(*normal_force);
+            self.energy += energy;
         }
         ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
     }

@@ -13,10 +13,13 @@
 //! points the triangle kernel places anywhere on the shared face. A pair that
 //! separates forgets its history.
 
-use super::{Effect, Forces, StepContext};
+use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
+use crate::contact::Contact;
 use crate::material::MaterialPairs;
 use crate::world::World;
 use glam::DVec3;
+use rayon::prelude::*;
+use std::ops::Range;
 
 pub struct FrictionEffect {
     laws: MaterialPairs,
@@ -24,6 +27,9 @@ pub struct FrictionEffect {
     /// contacts come: looked up by one merge-walk per step, no hashing.
     history: Vec<((usize, usize), DVec3)>,
     next: Vec<((usize, usize), DVec3)>,
+    /// This step's pairs in contact: their contacts and carried displacement.
+    pairs: Vec<(Range<usize>, DVec3)>,
+    results: Vec<Option<(PairForce, DVec3)>>,
 }
 
 impl FrictionEffect {
@@ -32,6 +38,8 @@ impl FrictionEffect {
             laws: MaterialPairs::new(&world.materials),
             history: Vec::new(),
             next: Vec::new(),
+            pairs: Vec::new(),
+            results: Vec::new(),
         }
     }
 }
@@ -42,59 +50,91 @@ impl Effect for FrictionEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        self.next.clear();
-        let mut old = self.history.iter().peekable();
-        let contacts = &ctx.contacts;
-        let mut start = 0;
+        // Body pairs in contact, each with the displacement it carried from
+        // the last step: one walk along both lists, both sorted by pair.
         // Contacts come grouped by body pair, pairs in increasing order (`body_contacts`).
-        while start < contacts.len() {
-            let (a, b) = (contacts[start].a, contacts[start].b);
-            let mut end = start;
-            let (mut c, mut n, mut w, mut f_n) = (DVec3::ZERO, DVec3::ZERO, 0.0, 0.0);
-            while end < contacts.len() && contacts[end].a == a && contacts[end].b == b {
-                let k = &contacts[end];
-                c += k.point * k.depth;
-                n += k.normal * k.depth;
-                w += k.depth;
-                f_n += ctx.normal_force[end];
-                end += 1;
-            }
-            start = end;
-            let Some(n) = n.try_normalize() else { continue };
-            if w <= 0.0 {
-                continue;
-            }
-            let c = c / w;
-            let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
-            let v_rel = ba.velocity_at(c) - bb.velocity_at(c);
-            let v_t = v_rel - n * v_rel.dot(n);
-            while old.next_if(|h| h.0 < (a, b)).is_some() {}
-            let mut xi = old.next_if(|h| h.0 == (a, b)).map_or(DVec3::ZERO, |h| h.1);
-            // Turn the stored displacement into the current tangent plane, keeping its length.
-            let len = xi.length();
-            xi -= n * xi.dot(n);
-            if let Some(dir) = xi.try_normalize() {
-                xi = dir * len;
-            }
-            xi += v_t * ctx.dt;
-            let law = self.laws.get(ba.material, bb.material);
-            let k_t = (2.0 / 7.0) * law.stiffness;
-            let mu = law.friction;
-            let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-            let c_t = 2.0 * law.damping_ratio * (m * k_t).sqrt();
-            let mut f_t = -xi * k_t - v_t * c_t;
-            let cap = mu * f_n;
-            let mag = f_t.length();
-            if mag > cap {
-                f_t *= if mag > 0.0 { cap / mag } else { 0.0 };
-                xi = -(f_t + v_t * c_t) / k_t;
-            }
-            forces.add_at(a, ba.x, c, f_t);
-            forces.add_at(b, bb.x, c, -f_t);
-            debug_assert!(self.next.last().is_none_or(|h| h.0 < (a, b)));
-            self.next.push(((a, b), xi));
+        self.pairs.clear();
+        let mut old = self.history.iter().peekable();
+        let mut start = 0;
+        for group in ctx.contacts.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
+            let key = (group[0].a, group[0].b);
+            while old.next_if(|h| h.0 < key).is_some() {}
+            let xi = old.next_if(|h| h.0 == key).map_or(DVec3::ZERO, |h| h.1);
+            self.pairs.push((start..start + group.len(), xi));
+            start += group.len();
+        }
+        let (laws, dt) = (&self.laws, ctx.dt);
+        let (contacts, normal_force) = (&ctx.contacts, &ctx.normal_force);
+        self.results.clear();
+        self.pairs
+            .par_iter()
+            .with_min_len(FORCE_GRAIN)
+            .map(|(range, xi)| {
+                pair_friction(
+                    world,
+                    laws,
+                    &contacts[range.clone()],
+                    &normal_force[range.clone()],
+                    *xi,
+                    dt,
+                )
+            })
+            .collect_into_vec(&mut self.results);
+        self.next.clear();
+        for (force, xi) in self.results.iter().flatten() {
+            forces.add_pair(force);
+            self.next.push(((force.a, force.b), *xi));
             ctx.stats.tangential_evaluations += 1;
         }
         std::mem::swap(&mut self.history, &mut self.next);
     }
+}
+
+/// The friction force of one body pair in contact, from its contacts, their
+/// normal forces and the displacement `xi` it carried, with the displacement
+/// it carries on; `None` when the contacts give no normal (no depth).
+fn pair_friction(
+    world: &World,
+    laws: &MaterialPairs,
+    contacts: &[Contact],
+    normal_force: &[f64],
+    mut xi: DVec3,
+    dt: f64,
+) -> Option<(PairForce, DVec3)> {
+    let (a, b) = (contacts[0].a, contacts[0].b);
+    let (mut c, mut n, mut w, mut f_n) = (DVec3::ZERO, DVec3::ZERO, 0.0, 0.0);
+    for (k, f) in contacts.iter().zip(normal_force) {
+        c += k.point * k.depth;
+        n += k.normal * k.depth;
+        w += k.depth;
+        f_n += f;
+    }
+    let n = n.try_normalize()?;
+    if w <= 0.0 {
+        return None;
+    }
+    let c = c / w;
+    let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
+    let v_rel = ba.velocity_at(c) - bb.velocity_at(c);
+    let v_t = v_rel - n * v_rel.dot(n);
+    // Turn the stored displacement into the current tangent plane, keeping its length.
+    let len = xi.length();
+    xi -= n * xi.dot(n);
+    if let Some(dir) = xi.try_normalize() {
+        xi = dir * len;
+    }
+    xi += v_t * dt;
+    let law = laws.get(ba.material, bb.material);
+    let k_t = (2.0 / 7.0) * law.stiffness;
+    let mu = law.friction;
+    let m = 1.0 / (ba.inv_mass + bb.inv_mass);
+    let c_t = 2.0 * law.damping_ratio * (m * k_t).sqrt();
+    let mut f_t = -xi * k_t - v_t * c_t;
+    let cap = mu * f_n;
+    let mag = f_t.length();
+    if mag > cap {
+        f_t *= if mag > 0.0 { cap / mag } else { 0.0 };
+        xi = -(f_t + v_t * c_t) / k_t;
+    }
+    Some((PairForce::new(a, ba.x, b, bb.x, c, f_t), xi))
 }

@@ -39,7 +39,45 @@ impl Forces {
         self.force[i] += f;
         self.torque[i] += (p - x).cross(f);
     }
+
+    /// Adds a [`PairForce`]: the same sums as `add_at` on a, then on b.
+    pub fn add_pair(&mut self, f: &PairForce) {
+        self.force[f.a] += f.force;
+        self.torque[f.a] += f.torque_a;
+        self.force[f.b] += -f.force;
+        self.torque[f.b] += f.torque_b;
+    }
 }
+
+/// A force on body a at a point, its opposite on body b, and their torques.
+/// Contact laws compute these in parallel (reading both bodies' states is
+/// most of their cost) and add them in contact order, so sums do not depend
+/// on the thread count.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PairForce {
+    pub a: usize,
+    pub b: usize,
+    pub force: DVec3,
+    pub torque_a: DVec3,
+    pub torque_b: DVec3,
+}
+
+impl PairForce {
+    /// `f` on a (centre `xa`) at `p`, −f on b (centre `xb`).
+    pub fn new(a: usize, xa: DVec3, b: usize, xb: DVec3, p: DVec3, f: DVec3) -> PairForce {
+        PairForce {
+            a,
+            b,
+            force: f,
+            torque_a: (p - xa).cross(f),
+            torque_b: (p - xb).cross(-f),
+        }
+    }
+}
+
+/// Contacts (or body pairs in contact) per parallel task of a contact law: a
+/// few dozen nanoseconds of arithmetic each, so small scenes stay on one thread.
+pub(crate) const FORCE_GRAIN: usize = 16;
 
 /// What the effects of one step share and count.
 #[derive(Debug, Default)]
