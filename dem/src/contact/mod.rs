@@ -27,7 +27,9 @@
 //! coincide to within half the halo sum (a vertex shared by several
 //! triangles, say) are merged, keeping the deepest; the survivors share the
 //! pair's stiffness (see effects::contact). Triangle contacts are sorted
-//! first, so the result does not depend on how triangles were split.
+//! first, so the result does not depend on how triangles were split. On one
+//! node (one phase) each task merges the body pairs it owns, in parallel;
+//! split across ranks the caller merges once both phases are in.
 
 mod bounds;
 mod broad_phase;
