@@ -39,7 +39,7 @@ pub use bounds::Bounds;
 pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
 use crate::distance::{
-    distance_many_serial, Closest, Counts, Options, PenaltyStats, Solver, Triangle,
+    distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Solver, Triangle,
 };
 use crate::world::World;
 use glam::DVec3;
@@ -126,7 +126,6 @@ struct Task {
     hits: Vec<(u32, u32)>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
-    pairs: Vec<(Triangle, Triangle)>,
     out: Vec<Closest>,
     stats: Vec<PenaltyStats>,
     found: Vec<TriangleContact>,
@@ -220,7 +219,7 @@ impl Detector {
         let mut triangle_pairs = 0;
         let mut counts = Counts::default();
         for task in &self.tasks[..n_tasks] {
-            triangle_pairs += task.pairs.len();
+            triangle_pairs += task.owners.len();
             counts = counts + task.counts;
         }
         let stats = DetectionStats {
@@ -287,17 +286,14 @@ impl Task {
                 self.owners.extend_from_slice(&self.hits[..found]);
             }
         }
-        self.pairs.clear();
-        self.pairs.extend(self.owners.iter().map(|&(i, j)| {
-            (
-                set.triangle(i as usize).vertices,
-                set.triangle(j as usize).vertices,
-            )
-        }));
-        let n = self.pairs.len();
+        let n = self.owners.len();
         self.out.resize(n, placeholder());
         self.stats.resize(n, PenaltyStats::default());
-        self.counts = distance_many_serial(&self.pairs, opts, &mut self.out, &mut self.stats)
+        let pairs = SetPairs {
+            set,
+            owners: &self.owners,
+        };
+        self.counts = distance_many_serial(&pairs, opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
         self.found.clear();
         for (&(i, j), r) in self.owners.iter().zip(&self.out) {
@@ -319,6 +315,27 @@ impl Task {
         } else {
             0
         };
+    }
+}
+
+/// Triangle pairs of a set, by index: the kernels read them in place.
+struct SetPairs<'a> {
+    set: &'a TriangleSet,
+    owners: &'a [(u32, u32)],
+}
+
+impl PairSource for SetPairs<'_> {
+    fn len(&self) -> usize {
+        self.owners.len()
+    }
+
+    #[inline]
+    fn pair(&self, k: usize) -> (&Triangle, &Triangle) {
+        let (i, j) = self.owners[k];
+        (
+            &self.set.triangle(i as usize).vertices,
+            &self.set.triangle(j as usize).vertices,
+        )
     }
 }
 

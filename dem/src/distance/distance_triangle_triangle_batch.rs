@@ -14,7 +14,8 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::isa::Isa;
-use super::{Closest, Solver, Triangle};
+use super::pair_source::{chunk_ranges, PairSource, Window};
+use super::{Closest, Solver};
 use glam::DVec3;
 
 /// Pairs per SIMD batch of the brute force.
@@ -259,8 +260,8 @@ unsafe fn batch_avx2(pk: &Packed) -> (V3, V3) {
 }
 
 /// Exact distances of up to `LANES` pairs at once (`out.len() == pairs.len()`).
-pub fn distance_triangle_triangle_batch(
-    pairs: &[(Triangle, Triangle)],
+pub fn distance_triangle_triangle_batch<P: PairSource + ?Sized>(
+    pairs: &P,
     isa: Isa,
     out: &mut [Closest],
 ) {
@@ -274,7 +275,7 @@ pub fn distance_triangle_triangle_batch(
     };
     let mut origin = [DVec3::ZERO; LANES];
     for l in 0..LANES {
-        let (a, b) = &pairs[l.min(pairs.len() - 1)];
+        let (a, b) = pairs.pair(l.min(pairs.len() - 1));
         let o = a[0];
         origin[l] = o;
         for v in 0..3 {
@@ -310,9 +311,10 @@ pub fn distance_triangle_triangle_batch(
 }
 
 /// Exact distances of any number of pairs, `LANES` at a time.
-pub fn distance_triangle_triangle_many(pairs: &[(Triangle, Triangle)], out: &mut [Closest]) {
+pub fn distance_triangle_triangle_many<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
+    assert_eq!(pairs.len(), out.len());
     let isa = Isa::detect();
-    for (p, o) in pairs.chunks(LANES).zip(out.chunks_mut(LANES)) {
-        distance_triangle_triangle_batch(p, isa, o);
+    for r in chunk_ranges(pairs.len(), LANES) {
+        distance_triangle_triangle_batch(&Window::new(pairs, r.clone()), isa, &mut out[r]);
     }
 }

@@ -15,6 +15,7 @@ use super::distance_triangle_triangle_batch::{
     distance_triangle_triangle_batch, LANES as BRUTE_LANES,
 };
 use super::isa::Isa;
+use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty::{dummy_closest, penalty_many, PenaltyParams, PenaltyStats, UnsupportedBatch};
 use super::{Closest, Triangle};
 use rayon::prelude::*;
@@ -221,8 +222,8 @@ pub fn distance_many(
 /// Like [`distance_many`] on the calling thread only: for callers that are
 /// already inside a parallel task of their own (contact detection runs
 /// culling and kernel together per task).
-pub fn distance_many_serial(
-    pairs: &[(Triangle, Triangle)],
+pub fn distance_many_serial<P: PairSource + ?Sized>(
+    pairs: &P,
     opts: &Options,
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
@@ -251,8 +252,8 @@ fn check_arguments(
 }
 
 /// One thread's share, batch by batch.
-fn serial_chunk(
-    pairs: &[(Triangle, Triangle)],
+fn serial_chunk<P: PairSource + ?Sized>(
+    pairs: &P,
     opts: &Options,
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
@@ -264,28 +265,27 @@ fn serial_chunk(
     let isa = Isa::detect();
     match opts.method {
         Method::Brute => {
-            for (p, o) in pairs.chunks(BRUTE_LANES).zip(out.chunks_mut(BRUTE_LANES)) {
-                distance_triangle_triangle_batch(p, isa, o);
+            for r in chunk_ranges(pairs.len(), BRUTE_LANES) {
+                distance_triangle_triangle_batch(&Window::new(pairs, r.clone()), isa, &mut out[r]);
             }
         }
         Method::Penalty | Method::Hybrid => {
             // Uncertified pairs waiting for a full brute-force batch (FailedPairs).
             let mut pending: Vec<usize> = Vec::with_capacity(2 * BRUTE_LANES);
-            let mut offset = 0;
-            for ((p, o), s) in pairs
-                .chunks(opts.batch)
-                .zip(out.chunks_mut(opts.batch))
-                .zip(stats.chunks_mut(opts.batch))
-            {
-                penalty_many(p, opts.batch, &opts.penalty, o, s).expect("batch size checked");
+            for r in chunk_ranges(pairs.len(), opts.batch) {
+                let offset = r.start;
+                let p = Window::new(pairs, r.clone());
+                let (o, s) = (&mut out[r.clone()], &mut stats[r]);
+                penalty_many(&p, opts.batch, &opts.penalty, o, s).expect("batch size checked");
                 let certified = s.iter().filter(|x| x.converged).count();
                 counts.certified += certified;
                 if opts.method == Method::Hybrid && certified < p.len() {
                     counts.fallback_batches += 1;
                     match opts.fallback {
                         Fallback::WholeBatch => {
-                            for (pp, oo) in p.chunks(BRUTE_LANES).zip(o.chunks_mut(BRUTE_LANES)) {
-                                distance_triangle_triangle_batch(pp, isa, oo);
+                            for rr in chunk_ranges(p.len(), BRUTE_LANES) {
+                                let pp = Window::new(&p, rr.clone());
+                                distance_triangle_triangle_batch(&pp, isa, &mut o[rr]);
                             }
                             counts.fallback_pairs += p.len();
                         }
@@ -298,17 +298,22 @@ fn serial_chunk(
                         }
                     }
                 }
-                offset += p.len();
             }
             // Failed pairs compacted into full SIMD batches.
             counts.fallback_pairs += pending.len();
-            let mut buf = [(pairs[0].0, pairs[0].1); BRUTE_LANES];
-            let mut res = [out[0]; BRUTE_LANES];
+            let Some(&k0) = pending.first() else {
+                return counts;
+            };
+            let first = pairs.pair(k0);
+            let mut buf = [(*first.0, *first.1); BRUTE_LANES];
+            let mut res = [out[k0]; BRUTE_LANES];
             for group in pending.chunks(BRUTE_LANES) {
                 for (slot, &k) in group.iter().enumerate() {
-                    buf[slot] = pairs[k];
+                    let (a, b) = pairs.pair(k);
+                    buf[slot] = (*a, *b);
                 }
-                distance_triangle_triangle_batch(&buf[..group.len()], isa, &mut res[..group.len()]);
+                let n = group.len();
+                distance_triangle_triangle_batch(&buf[..n], isa, &mut res[..n]);
                 for (slot, &k) in group.iter().enumerate() {
                     out[k] = res[slot];
                 }

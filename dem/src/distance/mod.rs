@@ -19,6 +19,7 @@ mod distance_triangle_triangle_batch;
 pub mod hybrid;
 mod isa;
 mod lanes;
+mod pair_source;
 pub mod penalty;
 mod penalty_finish;
 mod random_pairs;
@@ -36,6 +37,7 @@ pub use hybrid::{
     Threading,
 };
 pub use isa::Isa;
+pub use pair_source::PairSource;
 pub use penalty::{
     penalty_many, penalty_many_on, penalty_scalar, PenaltyParams, PenaltyStats, UnsupportedBatch,
 };

@@ -22,6 +22,7 @@
 
 use super::isa::Isa;
 use super::lanes::{F, V3};
+use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty_finish::{finish_lanes, Finished};
 use super::solve_spd4::{solve_spd4_by_blocks, Sym4, SYM4_INDEX};
 use super::{Closest, Solver, Triangle};
@@ -81,14 +82,14 @@ pub(crate) struct Batch<const N: usize> {
 
 impl<const N: usize> Batch<N> {
     /// Packs up to N pairs; missing lanes repeat the last pair (their results are ignored).
-    fn pack(pairs: &[(Triangle, Triangle)]) -> Self {
+    fn pack<P: PairSource + ?Sized>(pairs: &P) -> Self {
         let zero = V3([F::splat(0.0); 3]);
         let mut batch = Batch {
             w: zero,
             u: [zero; 4],
         };
         for lane in 0..N {
-            let (a, b) = &pairs[lane.min(pairs.len() - 1)];
+            let (a, b) = pairs.pair(lane.min(pairs.len() - 1));
             let o = a[0];
             let ws = o - b[0];
             let us = [a[1] - o, a[2] - o, b[0] - b[1], b[0] - b[2]];
@@ -229,8 +230,8 @@ fn kernel_on<const N: usize>(b: &Batch<N>, p: &PenaltyParams, isa: Isa) -> (Fini
 
 /// Runs the penalty kernel on up to `N` pairs (one SIMD batch) and writes the
 /// answers and per-pair statistics. `isa` must be available on this CPU.
-fn penalty_batch_n<const N: usize>(
-    pairs: &[(Triangle, Triangle)],
+fn penalty_batch_n<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
     prm: &PenaltyParams,
     isa: Isa,
     out: &mut [Closest],
@@ -238,8 +239,8 @@ fn penalty_batch_n<const N: usize>(
 ) {
     let batch = Batch::<N>::pack(pairs);
     let (f, iters) = kernel_on(&batch, prm, isa);
-    for (lane, (a, _)) in pairs.iter().enumerate() {
-        let o = a[0];
+    for lane in 0..pairs.len() {
+        let o = pairs.pair(lane).0[0];
         out[lane] = Closest {
             distance: f.distance.0[lane],
             p: DVec3::new(f.p.0[0].0[lane], f.p.0[1].0[lane], f.p.0[2].0[lane]) + o,
@@ -257,8 +258,8 @@ fn penalty_batch_n<const N: usize>(
 /// (one of [`BATCH_SIZES`]), using the best instruction set of this CPU.
 ///
 /// Returns an error for an unsupported batch size.
-pub fn penalty_many(
-    pairs: &[(Triangle, Triangle)],
+pub fn penalty_many<P: PairSource + ?Sized>(
+    pairs: &P,
     batch: usize,
     prm: &PenaltyParams,
     out: &mut [Closest],
@@ -269,8 +270,8 @@ pub fn penalty_many(
 
 /// Like [`penalty_many`] on a chosen instruction set (never above what the CPU has:
 /// a higher one is lowered to the detected one).
-pub fn penalty_many_on(
-    pairs: &[(Triangle, Triangle)],
+pub fn penalty_many_on<P: PairSource + ?Sized>(
+    pairs: &P,
     batch: usize,
     prm: &PenaltyParams,
     isa: Isa,
@@ -282,12 +283,9 @@ pub fn penalty_many_on(
     assert_eq!(pairs.len(), stats.len());
     macro_rules! run {
         ($n:literal) => {
-            for ((p, o), s) in pairs
-                .chunks($n)
-                .zip(out.chunks_mut($n))
-                .zip(stats.chunks_mut($n))
-            {
-                penalty_batch_n::<$n>(p, prm, isa, o, s);
+            for r in chunk_ranges(pairs.len(), $n) {
+                let window = Window::new(pairs, r.clone());
+                penalty_batch_n::<$n, _>(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
             }
         };
     }
@@ -313,7 +311,7 @@ pub fn penalty_many_on(
 pub fn penalty_scalar(a: &Triangle, b: &Triangle, prm: &PenaltyParams) -> (Closest, PenaltyStats) {
     let mut out = [dummy_closest()];
     let mut stats = [PenaltyStats::default()];
-    penalty_batch_n::<1>(&[(*a, *b)], prm, Isa::Baseline, &mut out, &mut stats);
+    penalty_batch_n::<1, _>(&[(*a, *b)][..], prm, Isa::Baseline, &mut out, &mut stats);
     (out[0], stats[0])
 }
 
