@@ -36,7 +36,14 @@ pub fn advance_orientation(b: &Body, h: f64) -> DQuat {
     let mut w = omega_of(b.q, b.inv_inertia_body, b.l);
     for _ in 0..4 {
         let q_mid = (exp_map(w * (0.5 * h)) * b.q).normalize();
-        w = omega_of(q_mid, b.inv_inertia_body, b.l);
+        let next = omega_of(q_mid, b.inv_inertia_body, b.l);
+        // An exact fixed point (slow or resting bodies reach one in a round or
+        // two): the remaining rounds would repeat it bit for bit.
+        let same = next.to_array().map(f64::to_bits) == w.to_array().map(f64::to_bits);
+        w = next;
+        if same {
+            break;
+        }
     }
     (exp_map(w * h) * b.q).normalize()
 }
