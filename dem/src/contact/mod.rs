@@ -262,13 +262,13 @@ impl Task {
             // hopper), so branches on them would mispredict: each loop writes
             // every index and advances past those that pass.
             let n_a = select(&mut self.candidates, a_part, |i| {
-                boxes_overlap(&set.triangle(i).bounds, &b_box)
+                set.triangle(i).bounds.overlaps(&b_box)
             });
             if n_a == 0 {
                 continue;
             }
             let n_b = select(&mut self.others, b_part, |j| {
-                boxes_overlap(&set.triangle(j).bounds, &a_box)
+                set.triangle(j).bounds.overlaps(&a_box)
             });
             let (candidates, others) = (&self.candidates[..n_a], &self.others[..n_b]);
             self.hits.resize(n_a, (0, 0));
@@ -278,7 +278,7 @@ impl Task {
                 for &i in candidates {
                     let ti = set.triangle(i as usize);
                     self.hits[found] = (i, j);
-                    found += (boxes_overlap(&ti.bounds, &tj.bounds)
+                    found += (ti.bounds.overlaps(&tj.bounds)
                         & !plane_separates(tj.plane, &ti.vertices, reach)
                         & !plane_separates(ti.plane, &tj.vertices, reach))
                         as usize;
@@ -413,17 +413,6 @@ fn plane_separates((n, d): (DVec3, f64), t: &Triangle, reach: f64) -> bool {
     let above = (h[0] > reach) & (h[1] > reach) & (h[2] > reach);
     let below = (h[0] < -reach) & (h[1] < -reach) & (h[2] < -reach);
     above | below
-}
-
-/// [`Bounds::overlaps`] without branches.
-#[inline]
-fn boxes_overlap(x: &Bounds, y: &Bounds) -> bool {
-    (x.lo.x <= y.hi.x)
-        & (x.lo.y <= y.hi.y)
-        & (x.lo.z <= y.hi.z)
-        & (y.lo.x <= x.hi.x)
-        & (y.lo.y <= x.hi.y)
-        & (y.lo.z <= x.hi.z)
 }
 
 /// Writes into `out` the indices of `range` that `keep` accepts, in order,
