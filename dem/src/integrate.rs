@@ -37,8 +37,8 @@ pub fn advance_orientation(b: &Body, h: f64) -> DQuat {
     for _ in 0..4 {
         let q_mid = (exp_map(w * (0.5 * h)) * b.q).normalize();
         let next = omega_of(q_mid, b.inv_inertia_body, b.l);
-        // An exact fixed point (slow or resting bodies reach one in a round or
-        // two): the remaining rounds would repeat it bit for bit.
+        // At an exact fixed point the remaining rounds would repeat it bit
+        // for bit: stop (how often bodies reach one early was not counted).
         let same = next.to_array().map(f64::to_bits) == w.to_array().map(f64::to_bits);
         w = next;
         if same {
