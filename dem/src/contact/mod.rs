@@ -123,6 +123,9 @@ struct Task {
     /// box, and the pairs found for one triangle of b.
     candidates: Vec<u32>,
     others: Vec<u32>,
+    /// Face planes of `candidates` and `others`.
+    candidate_planes: Vec<(DVec3, f64)>,
+    other_planes: Vec<(DVec3, f64)>,
     hits: Vec<(u32, u32)>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
@@ -271,16 +274,22 @@ impl Task {
                 set.triangle(j).bounds.overlaps(&a_box)
             });
             let (candidates, others) = (&self.candidates[..n_a], &self.others[..n_b]);
+            let planes_of = |ids: &[u32], planes: &mut Vec<(DVec3, f64)>| {
+                planes.clear();
+                planes.extend(ids.iter().map(|&i| set.triangle(i as usize).plane()));
+            };
+            planes_of(candidates, &mut self.candidate_planes);
+            planes_of(others, &mut self.other_planes);
             self.hits.resize(n_a, (0, 0));
-            for &j in others {
+            for (&j, &plane_j) in others.iter().zip(&self.other_planes) {
                 let tj = set.triangle(j as usize);
                 let mut found = 0;
-                for &i in candidates {
+                for (&i, &plane_i) in candidates.iter().zip(&self.candidate_planes) {
                     let ti = set.triangle(i as usize);
                     self.hits[found] = (i, j);
                     found += (ti.bounds.overlaps(&tj.bounds)
-                        & !plane_separates(tj.plane, &ti.vertices, reach)
-                        & !plane_separates(ti.plane, &tj.vertices, reach))
+                        & !plane_separates(plane_j, &ti.vertices, reach)
+                        & !plane_separates(plane_i, &tj.vertices, reach))
                         as usize;
                 }
                 self.owners.extend_from_slice(&self.hits[..found]);
@@ -299,7 +308,7 @@ impl Task {
         for (&(i, j), r) in self.owners.iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
             if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
-                let n = set.triangle(j as usize).plane.0;
+                let n = set.triangle(j as usize).plane().0;
                 self.found.push(TriangleContact {
                     a: ka,
                     b: kb,

@@ -26,27 +26,34 @@ pub struct TriangleKey {
     pub index: u32,
 }
 
-/// One triangle in world space, with what culling needs.
+/// One triangle in world space, with its box for culling.
+///
+/// The face plane is not stored: culling needs it only for the triangles
+/// that pass the box tests, and computing it there, in the parallel detection
+/// tasks, is cheaper than writing it for every triangle in the update, which
+/// on several threads is limited by moving cache lines between cores.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SetTriangle {
     pub vertices: Triangle,
-    /// Unit normal (outward for a body's validated mesh) and offset n · v0;
-    /// zero normal for a degenerate triangle.
-    pub plane: (DVec3, f64),
     /// Box inflated by the body's halo.
     pub bounds: Bounds,
 }
 
 impl SetTriangle {
     fn new(vertices: Triangle, halo: f64) -> SetTriangle {
-        let n = (vertices[1] - vertices[0])
-            .cross(vertices[2] - vertices[0])
-            .normalize_or_zero();
         SetTriangle {
             vertices,
-            plane: (n, n.dot(vertices[0])),
             bounds: Bounds::of(&vertices, halo),
         }
+    }
+
+    /// Unit normal (outward for a body's validated mesh) and offset n · v0;
+    /// zero normal for a degenerate triangle.
+    #[inline]
+    pub fn plane(&self) -> (DVec3, f64) {
+        let v = &self.vertices;
+        let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+        (n, n.dot(v[0]))
     }
 }
 
