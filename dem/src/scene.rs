@@ -47,11 +47,20 @@ use toml::Spanned;
 
 /// A scene error: where and why.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{file}:{line}: {cause}")]
 pub struct SceneError {
     pub file: String,
+    /// 1-based; 0 when the error is about the file as a whole (unreadable).
     pub line: usize,
     pub cause: String,
+}
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.line {
+            0 => write!(f, "{}: {}", self.file, self.cause),
+            line => write!(f, "{}:{line}: {}", self.file, self.cause),
+        }
+    }
 }
 
 #[derive(Debug, Deserialize)]
@@ -312,7 +321,7 @@ impl Scene {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
             file: path.display().to_string(),
             line: 0,
-            cause: e.to_string(),
+            cause: format!("cannot read the scene: {e}"),
         })?;
         Scene::parse(
             &text,

@@ -72,7 +72,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub output: Option<PathBuf>,
     /// Threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one)]
     pub threads: Option<usize>,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -103,7 +103,7 @@ pub struct PartitionArgs {
     #[arg(long)]
     pub halo: Option<f64>,
     /// Threads per rank (default: the cores available to the rank).
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one)]
     pub threads: Option<usize>,
     /// One JSON object per partitioning step instead of a table.
     #[arg(long)]
@@ -140,7 +140,7 @@ pub struct KernelsArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = at_least_one)]
     pub threads: Option<usize>,
     /// static, dynamic or guided.
     #[arg(long, default_value = "static")]
@@ -163,4 +163,13 @@ pub struct KernelsArgs {
     /// Where --accuracy writes its CSV and SVG plot.
     #[arg(long, default_value = "out/kernels")]
     pub output: PathBuf,
+}
+
+/// A count that must be positive (threads): 0 would silently mean "all cores".
+fn at_least_one(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
 }

@@ -40,3 +40,13 @@ impl fmt::Display for CliError {
 impl std::error::Error for CliError {}
 
 pub type CliResult<T = ()> = Result<T, CliError>;
+
+/// Creates an output directory (and its parents), naming it in the error.
+pub fn create_output_dir(dir: &std::path::Path) -> CliResult {
+    std::fs::create_dir_all(dir).map_err(|e| {
+        CliError::runtime(format!(
+            "{}: cannot create the output directory: {e}",
+            dir.display()
+        ))
+    })
+}

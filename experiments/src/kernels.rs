@@ -5,12 +5,12 @@
 //! ratios between rows are what to read.
 
 use crate::cli::KernelsArgs;
-use crate::error::{CliError, CliResult};
+use crate::error::{create_output_dir, CliError, CliResult};
 use crate::plot;
 use dem::distance::{
-    distance_many, distances, pair_scale, penalty_many_on, penalty_scalar, random_unit_pairs,
-    Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams, PenaltyStats, Threading,
-    Triangle,
+    distance_many, distances, pair_scale, penalty::BATCH_SIZES, penalty_many_on, penalty_scalar,
+    random_unit_pairs, Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams,
+    PenaltyStats, Threading, Triangle, UnsupportedBatch,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
@@ -30,6 +30,7 @@ pub struct Row {
 }
 
 pub fn run(args: &KernelsArgs) -> CliResult {
+    check_args(args)?;
     if args.accuracy {
         return accuracy_sweep(args);
     }
@@ -76,11 +77,9 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             isa.name(),
             threads,
             Box::new(move |out, stats| {
-                Some(
-                    pool.install(|| {
-                        distance_many(pairs, &o, out, stats).expect("batch size checked")
-                    }),
-                )
+                Some(pool.install(|| {
+                    distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
+                }))
             }),
         ));
     }
@@ -98,7 +97,8 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             chosen.name(),
             1,
             Box::new(move |out, stats| {
-                penalty_many_on(pairs, batch, &prm, chosen, out, stats).expect("batch");
+                penalty_many_on(pairs, batch, &prm, chosen, out, stats)
+                    .expect("batch size checked by check_args");
                 None
             }),
         ));
@@ -282,6 +282,8 @@ fn print_table(rows: &[Row], pairs: usize, seed: u64) {
 }
 
 fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
+    // Before the sweep, so that a bad path does not cost its minutes.
+    create_output_dir(&args.output)?;
     let pairs = random_unit_pairs(args.pairs, args.seed);
     let pool = pool(args.threads.or(Some(1)))?;
     let exact: Vec<Closest> = pool.install(|| {
@@ -381,8 +383,6 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     }
     bar.finish_and_clear();
     let dir = &args.output;
-    std::fs::create_dir_all(dir)
-        .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
     let csv_path = dir.join("kernels-accuracy.csv");
     std::fs::write(&csv_path, &csv)
         .map_err(|e| CliError::runtime(format!("{}: {e}", csv_path.display())))?;
@@ -446,6 +446,22 @@ impl<'a> Measure<'a> {
             counts: None,
         }
     }
+}
+
+/// Option values that would make the benchmark fail part-way or print
+/// meaningless numbers, refused before anything runs.
+fn check_args(args: &KernelsArgs) -> CliResult {
+    if args.pairs == 0 {
+        return Err(CliError::input("--pairs must be at least 1"));
+    }
+    if !BATCH_SIZES.contains(&args.batch) {
+        return Err(CliError::input(format!(
+            "--batch {}: {}",
+            args.batch,
+            UnsupportedBatch(args.batch)
+        )));
+    }
+    Ok(())
 }
 
 /// Median over `repeat` runs (after one warm-up run) of the time per pair, in ns.

@@ -11,7 +11,7 @@
 //! Each step is written and flushed as it is produced, so a run stopped early
 //! keeps everything written before.
 
-use crate::error::{CliError, CliResult};
+use crate::error::{create_output_dir, CliError, CliResult};
 use dem::simulation::Simulation;
 use ndarray::{Array1, Array2};
 use std::fmt::Write as _;
@@ -29,8 +29,7 @@ fn h5err(e: hdf5::Error) -> CliError {
 
 impl Output {
     pub fn create(dir: &Path, sim: &Simulation) -> CliResult<Output> {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
+        create_output_dir(dir)?;
         let path = dir.join("run.h5");
         let file = hdf5::File::create(&path)
             .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))?;

@@ -2,7 +2,7 @@
 //! measuring what load balancing costs and buys.
 
 use crate::cli::PartitionArgs;
-use crate::error::{CliError, CliResult};
+use crate::error::{create_output_dir, CliError, CliResult};
 use indicatif::{ProgressBar, ProgressStyle};
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
@@ -44,8 +44,7 @@ pub fn run(args: &PartitionArgs) -> CliResult {
 
     let csv_path = match (&args.output, me) {
         (Some(dir), 0) => {
-            std::fs::create_dir_all(dir)
-                .map_err(|e| CliError::runtime(format!("{}: {e}", dir.display())))?;
+            create_output_dir(dir)?;
             Some(dir.join(format!(
                 "partition-{}-{}-{}ranks.csv",
                 args.partitioner.name(),

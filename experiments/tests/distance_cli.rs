@@ -135,6 +135,31 @@ fn kernels_json_has_the_documented_fields() {
 }
 
 #[test]
+fn kernels_refuses_bad_options_without_a_panic() {
+    for (args, expect) in [
+        (
+            &["kernels", "--pairs", "100", "--batch", "3"][..],
+            "--batch 3",
+        ),
+        (&["kernels", "--pairs", "0"][..], "--pairs"),
+        (
+            &["kernels", "--pairs", "100", "--threads", "0"][..],
+            "--threads",
+        ),
+        (
+            &["kernels", "--accuracy", "--pairs", "100", "--batch", "5"][..],
+            "--batch 5",
+        ),
+    ] {
+        let (code, out, err) = tridem(args, "");
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(out.is_empty(), "{args:?} printed results: {out}");
+    }
+}
+
+#[test]
 fn kernels_accuracy_writes_csv_and_plot() {
     let dir = std::env::temp_dir().join(format!("tridem-acc-{}", std::process::id()));
     let (code, _, err) = tridem(

@@ -87,6 +87,13 @@ fn a_bad_scene_is_an_error_with_file_and_line() {
         "{err}"
     );
     assert!(!err.contains("panicked"), "{err}");
+    let missing = dir.join("missing.toml");
+    let (code, _, err) = tridem(&["run", missing.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains(&format!("{}: cannot read the scene", missing.display())),
+        "{err}"
+    );
     let _ = std::fs::remove_dir_all(dir);
 }
 
