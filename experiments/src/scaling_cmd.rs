@@ -30,6 +30,12 @@ pub fn run(args: &ScalingArgs) -> CliResult {
     let steps = args
         .steps
         .unwrap_or_else(|| (scene.end_time / scene.dt).round() as u64);
+    if steps == 0 {
+        return Err(CliError::input(format!(
+            "{}: no steps to time (--steps 0, or end_time below dt)",
+            args.scene.display()
+        )));
+    }
     let pools = args
         .threads
         .iter()

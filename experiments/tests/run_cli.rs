@@ -151,4 +151,7 @@ fn scaling_compares_thread_counts_and_their_results() {
         err.contains("--threads") && !err.contains("panicked"),
         "{err}"
     );
+    let (code, out, err) = tridem(&["scaling", &scene("hopper.toml"), "--steps", "0"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("no steps to time") && out.is_empty(), "{err}");
 }
