@@ -65,7 +65,7 @@ fn penalty_is_finite_and_never_wrong_when_it_claims_convergence() {
             method: Method::Penalty,
             penalty: dem::distance::PenaltyParams {
                 max_iterations: iterations,
-                exact_finish: false,
+                finish_rounds: 0,
                 ..Default::default()
             },
             ..Options::default()

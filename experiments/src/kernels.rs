@@ -299,9 +299,9 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     });
     let d = PenaltyParams::default();
     let mut settings: Vec<(&str, PenaltyParams, usize)> = Vec::new();
-    for finish in [true, false] {
+    for rounds in [d.finish_rounds, 0] {
         for it in 1..=8 {
-            let name = if finish {
+            let name = if rounds > 0 {
                 "iterations"
             } else {
                 "iterations (no finish)"
@@ -310,12 +310,15 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
                 name,
                 PenaltyParams {
                     max_iterations: it,
-                    exact_finish: finish,
+                    finish_rounds: rounds,
                     ..d
                 },
                 8,
             ));
         }
+    }
+    for finish_rounds in 0..=4 {
+        settings.push(("finish rounds", PenaltyParams { finish_rounds, ..d }, 8));
     }
     for r in [1e2, 1e4, 1e6, 1e8, 1e10] {
         settings.push(("penalty r", PenaltyParams { penalty: r, ..d }, 8));
@@ -326,60 +329,86 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     for b in [1, 2, 4, 8, 16, 32, 64] {
         settings.push(("batch", d, b));
     }
-    let bar = ProgressBar::new(settings.len() as u64).with_style(
+    // Accuracy first, one run per setting (it also warms up); then the times,
+    // in rounds that run every setting once, each setting's time the median
+    // over rounds: measured one setting after the other, this VM's swings of
+    // +-30% between minutes gave one setting 73-110 ns/pair within a sweep.
+    let rounds = args.repeat.max(1);
+    let bar = ProgressBar::new((settings.len() * (1 + rounds)) as u64).with_style(
         ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed}")
             .expect("template")
             .progress_chars("=> "),
     );
-    let mut points = Vec::new();
-    let mut csv = String::from("sweep,iterations,penalty,tol,batch,exact_finish,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L\n");
-    for (sweep, prm, batch) in settings {
+    let options = |method, prm: PenaltyParams, batch| Options {
+        method,
+        batch,
+        penalty: prm,
+        fallback: Fallback::WholeBatch,
+        threading: Threading::default(),
+    };
+    let n = pairs.len() as f64;
+    let mut rows = Vec::new();
+    for &(sweep, prm, batch) in &settings {
         bar.set_message(sweep);
-        let o = |method| Options {
-            method,
-            batch,
-            penalty: prm,
-            fallback: Fallback::WholeBatch,
-            threading: Threading::default(),
+        let run = |method| {
+            pool.install(|| distances(&pairs, &options(method, prm, batch)).expect("batch"))
         };
-        let mut pen = Vec::new();
-        let mut cert = 0;
-        let pen_ns = median_ns(args.repeat, pairs.len(), || {
-            pool.install(|| {
-                let (out, _, c) = distances(&pairs, &o(Method::Penalty)).expect("batch");
-                cert = c.certified;
-                pen = out;
-            })
-        });
-        let mut hyb = Vec::new();
-        let mut fb = 0;
-        let hyb_ns = median_ns(args.repeat, pairs.len(), || {
-            pool.install(|| {
-                let (out, _, c) = distances(&pairs, &o(Method::Hybrid)).expect("batch");
-                fb = c.fallback_pairs;
-                hyb = out;
-            })
-        });
+        let (pen, _, pen_counts) = run(Method::Penalty);
+        let (hyb, _, hyb_counts) = run(Method::Hybrid);
         let mut errs = rel_errors(&pairs, &pen, &exact);
+        errs.sort_by(f64::total_cmp);
         let hyb_max = rel_errors(&pairs, &hyb, &exact)
             .into_iter()
             .fold(0.0, f64::max);
-        errs.sort_by(f64::total_cmp);
-        let max = *errs.last().unwrap_or(&0.0);
-        let median = errs.get(errs.len() / 2).copied().unwrap_or(0.0);
-        let n = pairs.len() as f64;
+        rows.push(SweepRow {
+            max: *errs.last().unwrap_or(&0.0),
+            median: errs.get(errs.len() / 2).copied().unwrap_or(0.0),
+            certified: pen_counts.certified as f64 / n,
+            fallback: hyb_counts.fallback_pairs as f64 / n,
+            hyb_max,
+            pen_ns: Vec::new(),
+            hyb_ns: Vec::new(),
+        });
+        bar.inc(1);
+    }
+    bar.set_message("timing");
+    for _ in 0..rounds {
+        for (&(_, prm, batch), row) in settings.iter().zip(&mut rows) {
+            for (method, times) in [
+                (Method::Penalty, &mut row.pen_ns),
+                (Method::Hybrid, &mut row.hyb_ns),
+            ] {
+                let o = options(method, prm, batch);
+                let start = Instant::now();
+                pool.install(|| std::hint::black_box(distances(&pairs, &o).expect("batch")));
+                times.push(start.elapsed().as_secs_f64() * 1e9 / n);
+            }
+            bar.inc(1);
+        }
+    }
+    let mut points = Vec::new();
+    let mut csv = String::from("sweep,iterations,penalty,tol,batch,finish_rounds,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L\n");
+    for (&(sweep, prm, batch), row) in settings.iter().zip(rows) {
+        let (pen_ns, hyb_ns) = (median(row.pen_ns), median(row.hyb_ns));
         csv.push_str(&format!(
-            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{max:e},{median:e},{:.4},{:.4},{hyb_max:e}\n",
-            prm.max_iterations, prm.penalty, prm.tol, prm.exact_finish, cert as f64 / n, fb as f64 / n
+            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e}\n",
+            prm.max_iterations,
+            prm.penalty,
+            prm.tol,
+            prm.finish_rounds,
+            row.max,
+            row.median,
+            row.certified,
+            row.fallback,
+            row.hyb_max
         ));
         points.push(plot::Point {
             series: sweep.to_string(),
             x: pen_ns,
-            y: median,
-            certified: cert as f64 / n,
+            y: row.median,
+            certified: row.certified,
             label: label(sweep, &prm, batch),
         });
-        bar.inc(1);
     }
     bar.finish_and_clear();
     let dir = &args.output;
@@ -394,11 +423,29 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     Ok(())
 }
 
+/// One setting of the accuracy sweep: its errors, measured once, and its
+/// times per round.
+struct SweepRow {
+    max: f64,
+    median: f64,
+    certified: f64,
+    fallback: f64,
+    hyb_max: f64,
+    pen_ns: Vec<f64>,
+    hyb_ns: Vec<f64>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
 fn label(sweep: &str, p: &PenaltyParams, batch: usize) -> String {
     match sweep {
         "penalty r" => format!("r={:e}", p.penalty),
         "tolerance" => format!("tol={:e}", p.tol),
         "batch" => format!("N={batch}"),
+        "finish rounds" => format!("rounds={}", p.finish_rounds),
         _ => format!("{}", p.max_iterations),
     }
 }
@@ -462,20 +509,6 @@ fn check_args(args: &KernelsArgs) -> CliResult {
         )));
     }
     Ok(())
-}
-
-/// Median over `repeat` runs (after one warm-up run) of the time per pair, in ns.
-fn median_ns(repeat: usize, pairs: usize, mut f: impl FnMut()) -> f64 {
-    f();
-    let mut t: Vec<f64> = (0..repeat.max(1))
-        .map(|_| {
-            let start = Instant::now();
-            f();
-            start.elapsed().as_secs_f64() * 1e9 / pairs.max(1) as f64
-        })
-        .collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
 }
 
 fn pool(threads: Option<usize>) -> CliResult<rayon::ThreadPool> {

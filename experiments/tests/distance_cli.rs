@@ -188,6 +188,21 @@ fn kernels_accuracy_writes_csv_and_plot() {
         let hyb: f64 = f.last().unwrap().parse().unwrap();
         assert!(hyb <= tol + 1e-13, "{l}");
     }
+    // Each further round of the finish starts from the last one's answer and
+    // keeps what was certified: the certified rate cannot drop from round 1 on.
+    let rounds: Vec<(usize, f64)> = lines[1..]
+        .iter()
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[0] == "finish rounds")
+        .map(|f| (f[5].parse().unwrap(), f[10].parse().unwrap()))
+        .collect();
+    assert_eq!(
+        rounds.iter().map(|r| r.0).collect::<Vec<_>>(),
+        [0, 1, 2, 3, 4]
+    );
+    for w in rounds[1..].windows(2) {
+        assert!(w[1].1 >= w[0].1, "{rounds:?}");
+    }
     let svg = std::fs::read_to_string(dir.join("kernels-accuracy.svg")).unwrap();
     assert!(svg.contains("<svg"));
     let _ = std::fs::remove_dir_all(dir);

@@ -32,10 +32,6 @@ const ACTIVE: f64 = 1e-9;
 /// Regularisation of the finish towards Newton's point, relative to the scale.
 const FINISH_REGULARISATION: f64 = 1e-12;
 
-/// Rounds of the finish (the second corrects slightly wrong features; more
-/// rounds change the certified rate on the shared cases by under 1%).
-const FINISH_ROUNDS: usize = 3;
-
 /// Per lane: closest points in the local frame, distance, verdict.
 pub(crate) struct Finished<const N: usize> {
     pub p: V3<N>,
@@ -220,25 +216,23 @@ pub(crate) fn finish_lanes<const N: usize>(
     ];
     let tol = pair_scale(batch.w, &batch.u) * prm.tol;
     let delta = scale * FINISH_REGULARISATION;
-    if prm.exact_finish {
+    if prm.finish_rounds > 0 {
         t = solve_on_features(batch, t, delta);
     }
     let mut best = Candidate::at(batch, t, tol);
     if !best.all_certified() {
         best.certify_by_features(batch, tol);
     }
-    if prm.exact_finish {
-        for _ in 1..FINISH_ROUNDS {
-            if best.all_certified() {
-                break;
-            }
-            t = solve_on_features(batch, t, delta);
-            let mut next = Candidate::at(batch, t, tol);
-            if !next.all_certified() {
-                next.certify_by_features(batch, tol);
-            }
-            best.improve_with(&next);
+    for _ in 1..prm.finish_rounds {
+        if best.all_certified() {
+            break;
         }
+        t = solve_on_features(batch, t, delta);
+        let mut next = Candidate::at(batch, t, tol);
+        if !next.all_certified() {
+            next.certify_by_features(batch, tol);
+        }
+        best.improve_with(&next);
     }
     Finished {
         p: best.p,
