@@ -1,7 +1,7 @@
 //! Command-line interface: one subcommand per experiment.
 
 use clap::{Args, Parser, Subcommand};
-use dem::distance::{Method, Schedule};
+use dem::distance::{Method, PenaltyParams, Schedule};
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -128,6 +128,10 @@ pub struct DistanceArgs {
     /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
     #[arg(long, default_value_t = 8)]
     pub batch: usize,
+    /// Rounds of the penalty kernel's exact finish (0: none). More rounds
+    /// certify a few more pairs at a cost: see `tridem kernels --accuracy`.
+    #[arg(long, default_value_t = PenaltyParams::default().finish_rounds)]
+    pub finish_rounds: usize,
     /// CSV input; stdin when absent.
     pub file: Option<PathBuf>,
 }

@@ -3,7 +3,7 @@
 use crate::cli::DistanceArgs;
 use crate::error::{CliError, CliResult};
 use crate::pairs_csv::parse_pairs;
-use dem::distance::{distances, Options};
+use dem::distance::{distances, Options, PenaltyParams};
 use std::io::{Read, Write};
 
 pub fn run(args: &DistanceArgs) -> CliResult {
@@ -25,6 +25,10 @@ pub fn run(args: &DistanceArgs) -> CliResult {
     let opts = Options {
         method: args.method,
         batch: args.batch,
+        penalty: PenaltyParams {
+            finish_rounds: args.finish_rounds,
+            ..PenaltyParams::default()
+        },
         ..Options::default()
     };
     let (out, _, _) = distances(&pairs, &opts).map_err(|e| CliError::input(e.to_string()))?;
