@@ -7,6 +7,7 @@
 use crate::cli::KernelsArgs;
 use crate::error::{create_output_dir, CliError, CliResult};
 use crate::plot;
+use crate::stats::median;
 use dem::distance::{
     distance_many, distances, pair_scale, penalty::BATCH_SIZES, penalty_many_on, penalty_scalar,
     random_unit_pairs, Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams,
@@ -178,8 +179,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     let n = pairs.len() as f64;
     let rows: Vec<Row> = measures
         .into_iter()
-        .map(|mut m| {
-            m.times.sort_by(f64::total_cmp);
+        .map(|m| {
             let hybrid = m.method == "hybrid" && m.threads == threads;
             Row {
                 schedule: if m.threads > 1 {
@@ -188,7 +188,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
                     "serial".into()
                 },
                 batch: args.batch,
-                ns_per_pair: m.times[m.times.len() / 2],
+                ns_per_pair: median(m.times),
                 fallback_rate: m
                     .counts
                     .filter(|_| hybrid)
@@ -433,11 +433,6 @@ struct SweepRow {
     hyb_max: f64,
     pen_ns: Vec<f64>,
     hyb_ns: Vec<f64>,
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
 }
 
 fn label(sweep: &str, p: &PenaltyParams, batch: usize) -> String {

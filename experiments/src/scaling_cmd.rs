@@ -6,6 +6,7 @@
 
 use crate::cli::ScalingArgs;
 use crate::error::{CliError, CliResult};
+use crate::stats::median;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -132,15 +133,5 @@ fn one_run(scene: &Scene, steps: u64) -> RunResult {
     RunResult {
         seconds: start.elapsed().as_secs_f64(),
         positions: sim.world.bodies.iter().map(|b| b.x).collect(),
-    }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
     }
 }
