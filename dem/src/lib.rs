@@ -5,6 +5,7 @@
 //! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
 //! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
 //!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
+//! - [`timing`]: where a run's time goes, by section of the step pipeline.
 //! - [`busy_workers`]: keeps the thread pool polling through a run of short
 //!   parallel sections.
 
@@ -18,4 +19,5 @@ pub mod material;
 pub mod mesh;
 pub mod scene;
 pub mod simulation;
+pub mod timing;
 pub mod world;

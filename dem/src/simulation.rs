@@ -6,8 +6,10 @@ use crate::effects::{
 };
 use crate::integrate::{drift, half_kick};
 use crate::scene::Scene;
+use crate::timing::{seconds_since, SectionTimes};
 use crate::world::World;
 use rayon::prelude::*;
+use std::time::Instant;
 
 /// Bodies per parallel task of the integration.
 const INTEGRATION_GRAIN: usize = 32;
@@ -27,6 +29,8 @@ pub struct Simulation {
     ctx: StepContext,
     /// Counters summed over all steps so far.
     pub totals: StepStats,
+    /// Where the steps so far spent their time.
+    pub timings: SectionTimes,
 }
 
 impl Simulation {
@@ -57,8 +61,13 @@ impl Simulation {
                 ..StepContext::default()
             },
             totals: StepStats::default(),
+            timings: SectionTimes::default(),
         };
+        let names: Vec<_> = sim.effects.iter().map(|e| e.name()).collect();
+        sim.timings = SectionTimes::for_effects(names.iter().copied());
         sim.evaluate_forces();
+        // Time counts from the first step.
+        sim.timings = SectionTimes::for_effects(names);
         sim
     }
 
@@ -74,14 +83,21 @@ impl Simulation {
     fn evaluate_forces(&mut self) {
         self.forces.reset(self.world.bodies.len());
         self.ctx.stats = StepStats::default();
-        for e in &mut self.effects {
+        self.ctx.detection_times = Default::default();
+        // Indexed, not zipped: a timing list out of step with the effects must
+        // fail loudly, never skip an effect.
+        for (k, e) in self.effects.iter_mut().enumerate() {
+            let start = Instant::now();
             e.apply(&self.world, &mut self.ctx, &mut self.forces);
+            self.timings.effects[k].1 += seconds_since(start);
         }
+        self.timings.detection += self.ctx.detection_times;
     }
 
     /// One velocity-Verlet step.
     pub fn step(&mut self) {
         let (h, rot) = (self.dt, self.rotation);
+        let start = Instant::now();
         // Bodies are independent here; small scenes stay on one thread.
         let forces = &self.forces;
         self.world
@@ -93,7 +109,9 @@ impl Simulation {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
                 drift(b, h, rot);
             });
+        self.timings.integration += seconds_since(start);
         self.evaluate_forces();
+        let start = Instant::now();
         let forces = &self.forces;
         self.world
             .bodies
@@ -103,6 +121,7 @@ impl Simulation {
             .for_each(|(i, b)| {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
             });
+        self.timings.integration += seconds_since(start);
         self.world.time += h;
         self.world.step += 1;
         self.totals += self.ctx.stats;

@@ -11,6 +11,7 @@ mod partition_cmd;
 mod plot;
 mod run_cmd;
 mod scaling_cmd;
+mod sections;
 mod stats;
 
 use clap::Parser;

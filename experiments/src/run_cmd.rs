@@ -3,6 +3,7 @@
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::Output;
+use crate::sections::{label, section_rows};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -98,6 +99,14 @@ pub fn run(args: &RunArgs) -> CliResult {
         .iter()
         .map(|b| b.x.z)
         .fold(f64::NEG_INFINITY, f64::max);
+    let sections = section_rows(&sim.timings);
+    let stepping = sim.timings.total();
+    let mut section_json = serde_json::Map::new();
+    for r in &sections {
+        section_json.insert(r.key(), r.seconds.into());
+    }
+    // Output, the finiteness check and the progress bar.
+    section_json.insert("other".into(), (secs - stepping).max(0.0).into());
     let summary = serde_json::json!({
         "centre_of_mass": [com.x, com.y, com.z],
         "lowest_z": lowest,
@@ -116,6 +125,7 @@ pub fn run(args: &RunArgs) -> CliResult {
         "deep_contacts": t.detection.deep_contacts,
         "tangential_evaluations": t.tangential_evaluations,
         "kinetic_energy": sim.world.kinetic_energy(),
+        "section_seconds": section_json,
     });
     if args.json {
         println!("{summary}");
@@ -138,6 +148,12 @@ pub fn run(args: &RunArgs) -> CliResult {
             "particles' z           {lowest:.4} .. {highest:.4} (centre of mass {:.4})",
             com.z
         );
+        println!("time by section        seconds  share");
+        let mut rows: Vec<(String, f64)> = sections.iter().map(|r| (label(r), r.seconds)).collect();
+        rows.push(("output and checks".into(), (secs - stepping).max(0.0)));
+        for (name, s) in rows {
+            println!("  {name:<20} {s:>8.3}  {:>4.1}%", 100.0 * s / secs);
+        }
         if let Some(dir) = &args.output {
             println!(
                 "output                 {}/run.h5 (open {}/run.xmf in ParaView)",

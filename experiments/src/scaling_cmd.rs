@@ -6,15 +6,19 @@
 
 use crate::cli::ScalingArgs;
 use crate::error::{CliError, CliResult};
+use crate::sections::{label, section_rows};
 use crate::stats::median;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
+use dem::timing::SectionTimes;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::time::Instant;
 
-/// What one run leaves behind: its wall time and the bodies' final positions.
+/// What one run leaves behind: its wall time, where it went, and the bodies'
+/// final positions.
 struct RunResult {
     seconds: f64,
+    sections: SectionTimes,
     positions: Vec<glam::DVec3>,
 }
 
@@ -70,12 +74,37 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         .iter()
         .map(|runs| median(runs.iter().map(|r| r.seconds).collect()))
         .collect();
+    // Per thread count, per section: the median over the runs.
+    let section_medians: Vec<Vec<f64>> = results
+        .iter()
+        .map(|runs| {
+            let per_run: Vec<Vec<f64>> = runs
+                .iter()
+                .map(|r| {
+                    section_rows(&r.sections)
+                        .iter()
+                        .map(|s| s.seconds)
+                        .collect()
+                })
+                .collect();
+            (0..per_run[0].len())
+                .map(|k| median(per_run.iter().map(|v| v[k]).collect()))
+                .collect()
+        })
+        .collect();
+    let section_names = section_rows(&results[0][0].sections);
     let rows: Vec<serde_json::Value> = args
         .threads
         .iter()
         .zip(&results)
         .zip(&medians)
-        .map(|((&t, runs), &m)| {
+        .zip(&section_medians)
+        .map(|(((&t, runs), &m), sections)| {
+            let by_section: serde_json::Map<String, serde_json::Value> = section_names
+                .iter()
+                .zip(sections)
+                .map(|(r, &s)| (r.key(), s.into()))
+                .collect();
             serde_json::json!({
                 "scene": args.scene.display().to_string(),
                 "steps": steps,
@@ -85,6 +114,7 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 "seconds_per_particle_step": m / (steps as f64 * particles),
                 "speedup": medians[0] / m,
                 "identical_results": identical,
+                "median_section_seconds": by_section,
             })
         })
         .collect();
@@ -114,6 +144,33 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         );
     }
     println!(
+        "median seconds by section, and speed-up over {} thread(s)",
+        args.threads[0]
+    );
+    print!("  {:<20}", "section");
+    for t in &args.threads {
+        print!("  {:>8}", format!("{t} thr"));
+    }
+    for t in &args.threads[1..] {
+        print!("  {:>8}", format!("x{t}"));
+    }
+    println!();
+    for (k, r) in section_names.iter().enumerate() {
+        print!("  {:<20}", label(r));
+        for m in &section_medians {
+            print!("  {:>8.3}", m[k]);
+        }
+        for m in &section_medians[1..] {
+            let ratio = section_medians[0][k] / m[k];
+            if ratio.is_finite() {
+                print!("  {:>7.2}x", ratio);
+            } else {
+                print!("  {:>8}", "-");
+            }
+        }
+        println!();
+    }
+    println!(
         "final states {} across thread counts and runs",
         if identical { "bit-identical" } else { "DIFFER" }
     );
@@ -132,6 +189,7 @@ fn one_run(scene: &Scene, steps: u64) -> RunResult {
     });
     RunResult {
         seconds: start.elapsed().as_secs_f64(),
+        sections: sim.timings,
         positions: sim.world.bodies.iter().map(|b| b.x).collect(),
     }
 }

@@ -41,10 +41,12 @@ pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 use crate::distance::{
     distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Solver, Triangle,
 };
+use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::time::Instant;
 
 /// One contact between bodies `a` < `b`; the normal points from b to a.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,6 +114,8 @@ pub struct Detector {
     /// One per task of a pass, kept between passes for their capacity.
     tasks: Vec<Task>,
     broad: broad_phase::BroadPhase,
+    /// Where the last pass spent its time.
+    times: DetectionTimes,
 }
 
 /// What one parallel task of a detection pass owns: its share of the body
@@ -147,10 +151,13 @@ impl Detector {
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
         let mut set = std::mem::take(&mut self.set);
+        let start = Instant::now();
         set.update_from_world(world, halos);
+        let triangle_update = seconds_since(start);
         let (mut stats, n_tasks) =
             self.run_tasks(world, &set, halos, opts, Phase::LocalLocal, true);
         self.set = set;
+        self.times.triangle_update = triangle_update;
         // Each task merged its own body pairs (one phase: a body pair's
         // triangle contacts all come from one task), and the tasks hold
         // consecutive shares of the sorted body pairs, so joining their
@@ -162,6 +169,12 @@ impl Detector {
         }
         stats.contacts = contacts.len() as u64;
         stats
+    }
+
+    /// Where the last pass ([`Self::detect`] or [`Self::triangle_contacts`])
+    /// spent its time (no triangle update in the latter: the caller's set).
+    pub fn last_times(&self) -> DetectionTimes {
+        self.times
     }
 
     /// Appends to `found` the triangle contacts of one phase on `set`, to be
@@ -199,7 +212,13 @@ impl Detector {
         phase: Phase,
         merge: bool,
     ) -> (DetectionStats, usize) {
+        let start = Instant::now();
         let body_pairs = self.broad.body_pairs(set, &world.bodies, phase);
+        self.times = DetectionTimes {
+            broad_phase: seconds_since(start),
+            ..DetectionTimes::default()
+        };
+        let start = Instant::now();
         let lengths = opts
             .threading
             .share_lengths(body_pairs.len(), rayon::current_num_threads());
@@ -219,6 +238,7 @@ impl Detector {
             .zip(self.tasks[..n_tasks].iter_mut())
             .par_bridge()
             .for_each(|(share, task)| task.run(set, halos, opts, phase, share, merge));
+        self.times.narrow_phase = seconds_since(start);
         let mut triangle_pairs = 0;
         let mut counts = Counts::default();
         for task in &self.tasks[..n_tasks] {

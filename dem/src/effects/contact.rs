@@ -53,6 +53,7 @@ impl Effect for ContactEffect {
             .detector
             .detect(world, &self.halo, &self.kernel, &mut ctx.contacts);
         ctx.stats.detection = det;
+        ctx.detection_times = self.detector.last_times();
         let laws = &self.laws;
         ctx.contacts
             .par_iter()

@@ -16,6 +16,7 @@ pub use friction::FrictionEffect;
 pub use gravity::GravityEffect;
 
 use crate::contact::{Contact, DetectionStats};
+use crate::timing::DetectionTimes;
 use crate::world::World;
 use glam::DVec3;
 
@@ -87,6 +88,8 @@ pub struct StepContext {
     /// Normal force magnitude of each contact (0 where the spring is in tension).
     pub normal_force: Vec<f64>,
     pub stats: StepStats,
+    /// Where this step's contact detection spent its time.
+    pub detection_times: DetectionTimes,
 }
 
 /// Counters of one step, summed over a run by the caller.
