@@ -7,6 +7,10 @@
 //! then local-ghost pairs. On one node every triangle is owned and only the
 //! first phase has work. Per phase:
 //!
+//! 0. On one node, the set follows the world: each body's box is computed from
+//!    its pose, and the triangles of a moving body are filled in by the first
+//!    detection task that needs them (`TriangleSet::fill_group`), on the
+//!    core that then reads them.
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
 //!    ([`broad_phase`]).
 //! 2. Triangle culling: only triangles whose inflated boxes overlap the other
@@ -131,6 +135,8 @@ struct Task {
     candidate_planes: Vec<(DVec3, f64)>,
     other_planes: Vec<(DVec3, f64)>,
     hits: Vec<(u32, u32)>,
+    /// Scratch of `TriangleSet::fill_group`.
+    vertices: Vec<DVec3>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
@@ -152,7 +158,7 @@ impl Detector {
     ) -> DetectionStats {
         let mut set = std::mem::take(&mut self.set);
         let start = Instant::now();
-        set.update_from_world(world, halos);
+        set.follow_world_lazily(world, halos);
         let triangle_update = seconds_since(start);
         let (mut stats, n_tasks) =
             self.run_tasks(world, &set, halos, opts, Phase::LocalLocal, true);
@@ -237,7 +243,7 @@ impl Detector {
         shares
             .zip(self.tasks[..n_tasks].iter_mut())
             .par_bridge()
-            .for_each(|(share, task)| task.run(set, halos, opts, phase, share, merge));
+            .for_each(|(share, task)| task.run(world, set, halos, opts, phase, share, merge));
         self.times.narrow_phase = seconds_since(start);
         let mut triangle_pairs = 0;
         let mut counts = Counts::default();
@@ -262,8 +268,10 @@ impl Task {
     /// those within reach, sorted as [`body_contacts`] wants them; with
     /// `merge`, merges those into body contacts too (in parallel with the
     /// other tasks rather than after them all).
+    #[allow(clippy::too_many_arguments)]
     fn run(
         &mut self,
+        world: &World,
         set: &TriangleSet,
         halos: &[f64],
         opts: &Options,
@@ -274,6 +282,8 @@ impl Task {
         let groups = set.groups();
         self.owners.clear();
         for &(g, h) in body_pairs {
+            set.fill_group(g, world, &mut self.vertices);
+            set.fill_group(h, world, &mut self.vertices);
             let (ga, gb) = (&groups[g], &groups[h]);
             let (a_part, a_box) = (ga.owned.clone(), ga.owned_box);
             let (b_part, b_box) = match phase {

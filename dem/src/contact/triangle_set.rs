@@ -13,11 +13,15 @@
 //! every body present has one [`BodyGroup`].
 
 use super::bounds::Bounds;
+use crate::body::Body;
 use crate::distance::Triangle;
+use crate::mesh::TriMesh;
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
+use std::cell::UnsafeCell;
 use std::ops::Range;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 /// A triangle's global name: its body and its index in the body's mesh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -72,13 +76,87 @@ pub struct BodyGroup {
 #[derive(Debug, Clone, Default)]
 pub struct TriangleSet {
     keys: Vec<TriangleKey>,
-    triangles: Vec<SetTriangle>,
+    triangles: Vec<Slot>,
     owned: usize,
     groups: Vec<BodyGroup>,
     /// Pose and halo each body's triangles were last computed for, when the
     /// set mirrors the whole world (`update_from_world`): static obstacles,
     /// often the largest meshes, are computed once.
     poses: Vec<Option<(DVec3, DQuat, f64)>>,
+    /// Per group, when the set follows the world lazily: whether its
+    /// triangles are current (empty: all are).
+    fresh: Freshness,
+}
+
+/// A triangle of the set, which [`TriangleSet::fill_group`] may write through
+/// a shared reference.
+struct Slot(UnsafeCell<SetTriangle>);
+
+// SAFETY: concurrent access is ordered by the groups' states (see
+// `TriangleSet::fill_group` and `TriangleSet::triangle`).
+unsafe impl Sync for Slot {}
+
+impl Slot {
+    fn new(t: SetTriangle) -> Slot {
+        Slot(UnsafeCell::new(t))
+    }
+}
+
+impl Clone for Slot {
+    fn clone(&self) -> Slot {
+        // SAFETY: a set is cloned outside detection passes, with no filler running.
+        Slot::new(unsafe { *self.0.get() })
+    }
+}
+
+impl std::fmt::Debug for Slot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        // SAFETY: as for `Clone`.
+        unsafe { *self.0.get() }.fmt(f)
+    }
+}
+
+/// Group states of a set that follows the world lazily.
+const CURRENT: u8 = 0;
+const STALE: u8 = 1;
+const FILLING: u8 = 2;
+
+/// One state per group (empty: every group is current).
+#[derive(Debug, Default)]
+struct Freshness(Vec<AtomicU8>);
+
+impl Freshness {
+    fn all_current(n: usize) -> Freshness {
+        Freshness((0..n).map(|_| AtomicU8::new(CURRENT)).collect())
+    }
+}
+
+impl Clone for Freshness {
+    fn clone(&self) -> Freshness {
+        Freshness(
+            self.0
+                .iter()
+                .map(|a| AtomicU8::new(a.load(Ordering::Acquire)))
+                .collect(),
+        )
+    }
+}
+
+/// When [`TriangleSet::follow_world`] computes the triangles of moving bodies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fill {
+    Now,
+    OnDemand,
+}
+
+/// `body`'s mesh vertices in world space, into `out`: each vertex once, by
+/// the rotation matrix (a closed mesh has about half as many vertices as
+/// triangles, each triangle three). The one place they are computed, so the
+/// boxes and the triangles filled later agree to the bit.
+fn world_vertices(body: &Body, mesh: &TriMesh, out: &mut Vec<DVec3>) {
+    let r = DMat3::from_quat(body.q);
+    out.clear();
+    out.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
 }
 
 /// Bodies per parallel task when the set follows the world: small, because
@@ -90,6 +168,63 @@ impl TriangleSet {
     /// Every triangle of every body, owned: the one-node set. Only bodies that
     /// moved (or whose halo changed) since the last call are recomputed.
     pub fn update_from_world(&mut self, world: &World, halos: &[f64]) {
+        self.follow_world(world, halos, Fill::Now);
+    }
+
+    /// Like [`Self::update_from_world`], but the triangles of moving bodies
+    /// are left to [`Self::fill_group`], called by whichever detection task
+    /// needs them first; only the groups' boxes are computed here.
+    ///
+    /// Why: on several threads, rewriting every triangle in a pass of its own
+    /// was limited by moving cache lines between the cores (the detection
+    /// tasks had read them on the other core): hopper, 2 threads, 0.13-0.35 s
+    /// per run against 0.07 s on one (`tridem scaling`, docs/dem.md). Filled by
+    /// the task that reads them, they are written where they are used.
+    pub(crate) fn follow_world_lazily(&mut self, world: &World, halos: &[f64]) {
+        self.follow_world(world, halos, Fill::OnDemand);
+    }
+
+    /// Makes group `g`'s triangles current (a no-op unless the set follows the
+    /// world lazily and `g` moved): the first caller computes them, a
+    /// concurrent caller waits for it. Call before reading the group's
+    /// triangles during a detection pass. `vertices` is scratch.
+    pub(crate) fn fill_group(&self, g: usize, world: &World, vertices: &mut Vec<DVec3>) {
+        let Some(state) = self.fresh.0.get(g) else {
+            return;
+        };
+        loop {
+            match state.compare_exchange(STALE, FILLING, Ordering::Acquire, Ordering::Acquire) {
+                Ok(_) => break,
+                Err(CURRENT) => return,
+                // Another task is filling it: a microsecond or so.
+                Err(_) => std::hint::spin_loop(),
+            }
+        }
+        let group = &self.groups[g];
+        let body = &world.bodies[group.body as usize];
+        let halo = self.poses[g].map_or(0.0, |p| p.2);
+        let mesh = &world.shapes[body.shape];
+        world_vertices(body, mesh, vertices);
+        for (slot, t) in self.triangles[group.owned.clone()]
+            .iter()
+            .zip(&mesh.triangles)
+        {
+            let v = [
+                vertices[t[0] as usize],
+                vertices[t[1] as usize],
+                vertices[t[2] as usize],
+            ];
+            // SAFETY: this thread moved the group from STALE to FILLING, so it
+            // is the only one writing its slots, and no one reads them until
+            // they see CURRENT (stored below with Release; readers load it
+            // with Acquire in this function before reading). The slots of
+            // different groups are disjoint.
+            unsafe { *slot.0.get() = SetTriangle::new(v, halo) };
+        }
+        state.store(CURRENT, Ordering::Release);
+    }
+
+    fn follow_world(&mut self, world: &World, halos: &[f64], fill: Fill) {
         let bodies = &world.bodies;
         let sizes = || bodies.iter().map(|b| world.shapes[b.shape].triangles.len());
         let layout_matches = self.ghosts().is_empty()
@@ -99,7 +234,9 @@ impl TriangleSet {
                 .iter()
                 .zip(sizes())
                 .enumerate()
-                .all(|(i, (g, n))| g.body as usize == i && g.owned.len() == n);
+                .all(|(i, (g, n))| g.body as usize == i && g.owned.len() == n)
+            && self.poses.len() == bodies.len()
+            && self.fresh.0.len() == bodies.len();
         if !layout_matches {
             self.keys.clear();
             self.groups.clear();
@@ -124,9 +261,10 @@ impl TriangleSet {
             self.owned = end;
             let zero = SetTriangle::new([DVec3::ZERO; 3], 0.0);
             self.triangles.clear();
-            self.triangles.resize(end, zero);
+            self.triangles.resize_with(end, || Slot::new(zero));
             self.poses.clear();
             self.poses.resize(bodies.len(), None);
+            self.fresh = Freshness::all_current(bodies.len());
         }
         // One mutable slice of triangles per body, updated in parallel.
         let mut slices = Vec::with_capacity(bodies.len());
@@ -140,8 +278,9 @@ impl TriangleSet {
             .into_par_iter()
             .zip(self.groups.par_iter_mut())
             .zip(self.poses.par_iter_mut())
+            .zip(self.fresh.0.par_iter_mut())
             .with_min_len(UPDATE_GRAIN)
-            .for_each_init(Vec::new, |vertices, ((tris, group), pose)| {
+            .for_each_init(Vec::new, |vertices, (((tris, group), pose), fresh)| {
                 let i = group.body as usize;
                 let (body, halo) = (&bodies[i], halos[i]);
                 let key = (body.x, body.q, halo);
@@ -149,11 +288,9 @@ impl TriangleSet {
                     return;
                 }
                 let mesh = &world.shapes[body.shape];
-                // Each vertex once, by the rotation matrix: a closed mesh has
-                // about half as many vertices as triangles, each triangle three.
-                let r = DMat3::from_quat(body.q);
-                vertices.clear();
-                vertices.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
+                world_vertices(body, mesh, vertices);
+                // Static bodies are filled now: once, since they never move.
+                let fill_now = fill == Fill::Now || body.is_static();
                 let mut bbox = Bounds::EMPTY;
                 for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
                     let v = [
@@ -161,9 +298,13 @@ impl TriangleSet {
                         vertices[t[1] as usize],
                         vertices[t[2] as usize],
                     ];
-                    *slot = SetTriangle::new(v, halo);
-                    bbox = bbox.union(&slot.bounds);
+                    let triangle = SetTriangle::new(v, halo);
+                    if fill_now {
+                        *slot.0.get_mut() = triangle;
+                    }
+                    bbox = bbox.union(&triangle.bounds);
                 }
+                *fresh.get_mut() = if fill_now { CURRENT } else { STALE };
                 group.owned_box = bbox;
                 *pose = Some(key);
             });
@@ -180,7 +321,7 @@ impl TriangleSet {
     /// Replaces the ghosts (what arrived from other ranks), keeping the owned part.
     pub fn set_ghosts(&mut self, ghosts: Vec<(TriangleKey, Triangle)>, halos: &[f64]) {
         let owned = (0..self.owned)
-            .map(|i| (self.keys[i], self.triangles[i].vertices))
+            .map(|i| (self.keys[i], self.triangle(i).vertices))
             .collect();
         self.replace(owned, ghosts, halos);
     }
@@ -195,12 +336,13 @@ impl TriangleSet {
         ghosts.sort_by_key(|e| e.0);
         self.owned = owned.len();
         self.poses.clear();
+        self.fresh = Freshness::default();
         self.keys.clear();
         self.triangles.clear();
         for (k, t) in owned.iter().chain(&ghosts) {
             self.keys.push(*k);
             self.triangles
-                .push(SetTriangle::new(*t, halos[k.body as usize]));
+                .push(Slot::new(SetTriangle::new(*t, halos[k.body as usize])));
         }
         // Groups: merge the bodies of the two sorted parts.
         self.groups.clear();
@@ -233,9 +375,8 @@ impl TriangleSet {
                 .next_if(|r| r.0 == body)
                 .map_or(empty_ghost.clone(), |r| r.1);
             let union = |r: &Range<usize>| {
-                self.triangles[r.clone()]
-                    .iter()
-                    .fold(Bounds::EMPTY, |b, t| b.union(&t.bounds))
+                r.clone()
+                    .fold(Bounds::EMPTY, |b, i| b.union(&self.triangle(i).bounds))
             };
             self.groups.push(BodyGroup {
                 body,
@@ -269,8 +410,14 @@ impl TriangleSet {
         self.keys[i]
     }
 
+    /// Triangle `i`. During a detection pass on a set that follows the world
+    /// lazily, only after `fill_group` on its group.
     pub fn triangle(&self, i: usize) -> &SetTriangle {
-        &self.triangles[i]
+        // SAFETY: slots are written through `&mut self`, or by `fill_group`
+        // while their group is FILLING, and the detection tasks (the only
+        // callers of `fill_group`, on the detector's private set) read a
+        // group's triangles only after their own `fill_group` call on it.
+        unsafe { &*self.triangles[i].0.get() }
     }
 
     /// One group per body present, in body order.
