@@ -284,7 +284,10 @@ impl TriangleSet {
                 let i = group.body as usize;
                 let (body, halo) = (&bodies[i], halos[i]);
                 let key = (body.x, body.q, halo);
-                if *pose == Some(key) {
+                // Unmoved, and filled unless filling is left to the tasks (a
+                // set followed lazily and then updated at once must not keep
+                // the stale triangles of a body no task needed).
+                if *pose == Some(key) && (fill == Fill::OnDemand || *fresh.get_mut() == CURRENT) {
                     return;
                 }
                 let mesh = &world.shapes[body.shape];
@@ -461,5 +464,26 @@ mod tests {
         let b = &set.groups()[1];
         assert_eq!(b.owned_box.lo, DVec3::new(1.9, -0.1, -0.1));
         assert!(set.groups()[0].ghost_box.is_empty());
+    }
+
+    /// Followed lazily, a moving body's triangles wait for a task; updated at
+    /// once afterwards (same poses), the set must hold every triangle, as a
+    /// set updated at once from the start does.
+    #[test]
+    fn an_update_after_a_lazy_follow_fills_what_no_task_filled() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/drop.toml");
+        let world = crate::scene::Scene::load(&path).unwrap().world;
+        let halos = world.per_body(|m| m.halo);
+        let mut eager = TriangleSet::default();
+        eager.update_from_world(&world, &halos);
+        let mut lazy = TriangleSet::default();
+        lazy.follow_world_lazily(&world, &halos);
+        assert_eq!(lazy.groups(), eager.groups(), "boxes are computed up front");
+        let differs = (0..eager.len()).any(|i| lazy.triangle(i) != eager.triangle(i));
+        assert!(differs, "moving bodies are left to the tasks");
+        lazy.update_from_world(&world, &halos);
+        for i in 0..eager.len() {
+            assert_eq!(lazy.triangle(i), eager.triangle(i), "triangle {i}");
+        }
     }
 }
