@@ -50,6 +50,7 @@ use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// One contact between bodies `a` < `b`; the normal points from b to a.
@@ -219,7 +220,20 @@ impl Detector {
         merge: bool,
     ) -> (DetectionStats, usize) {
         let start = Instant::now();
-        let body_pairs = self.broad.body_pairs(set, &world.bodies, phase);
+        // The broad phase is serial: meanwhile another thread fills triangles
+        // that the tasks would otherwise fill (a no-op for sets that are not
+        // filled lazily, and on one thread, where it starts after the broad
+        // phase has already said stop).
+        let stop = AtomicBool::new(false);
+        let broad = &mut self.broad;
+        let (body_pairs, ()) = rayon::join(
+            || {
+                let pairs = broad.body_pairs(set, &world.bodies, phase);
+                stop.store(true, Ordering::Relaxed);
+                pairs
+            },
+            || set.prefill_until(world, &stop),
+        );
         self.times = DetectionTimes {
             broad_phase: seconds_since(start),
             ..DetectionTimes::default()

@@ -21,7 +21,7 @@ use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 use std::cell::UnsafeCell;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 /// A triangle's global name: its body and its index in the body's mesh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -222,6 +222,19 @@ impl TriangleSet {
             unsafe { *slot.0.get() = SetTriangle::new(v, halo) };
         }
         state.store(CURRENT, Ordering::Release);
+    }
+
+    /// Fills stale groups, last to first, until `stop` is set. For a thread
+    /// that would otherwise wait (see `Detector::run_tasks`); the detection
+    /// tasks fill whatever is left.
+    pub(crate) fn prefill_until(&self, world: &World, stop: &AtomicBool) {
+        let mut vertices = Vec::new();
+        for g in (0..self.fresh.0.len()).rev() {
+            if stop.load(Ordering::Relaxed) {
+                return;
+            }
+            self.fill_group(g, world, &mut vertices);
+        }
     }
 
     fn follow_world(&mut self, world: &World, halos: &[f64], fill: Fill) {
