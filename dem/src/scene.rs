@@ -138,7 +138,19 @@ struct KernelSpec {
     /// Body pairs per task of the dynamic schedule, smallest task of the guided one.
     #[serde(default = "default_grain")]
     grain: usize,
+    /// Newton iterations of the penalty kernel (penalty and hybrid methods).
+    iterations: Option<usize>,
+    /// Rounds of the penalty kernel's exact finish (penalty and hybrid methods).
+    finish_rounds: Option<usize>,
 }
+
+/// Bounds of the penalty kernel's settings in a scene: iteration counts are
+/// reported per pair in a byte. The accuracy sweep (`tridem kernels
+/// --accuracy`, rounds 0-4) found rounds after the second certifying almost
+/// no more pairs; 8 leaves room above what was measured and keeps a typo
+/// from turning every uncertified batch into a long loop.
+const MAX_ITERATIONS: usize = 255;
+const MAX_FINISH_ROUNDS: usize = 8;
 
 fn default_grain() -> usize {
     Threading::default().grain
@@ -576,10 +588,39 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             if k.grain == 0 {
                 return ctx.err(span, "kernel.grain must be at least 1");
             }
+            let mut penalty = PenaltyParams::default();
+            if method == Method::Brute && (k.iterations.is_some() || k.finish_rounds.is_some()) {
+                return ctx.err(
+                    span,
+                    "kernel.iterations and kernel.finish_rounds set the penalty kernel, \
+                     which method = \"brute\" does not run",
+                );
+            }
+            if let Some(n) = k.iterations {
+                // Per-pair iteration counts are reported in a byte.
+                if !(1..=MAX_ITERATIONS).contains(&n) {
+                    return ctx.err(
+                        span,
+                        format!(
+                            "kernel.iterations must be between 1 and {MAX_ITERATIONS}, got {n}"
+                        ),
+                    );
+                }
+                penalty.max_iterations = n;
+            }
+            if let Some(n) = k.finish_rounds {
+                if n > MAX_FINISH_ROUNDS {
+                    return ctx.err(
+                        span,
+                        format!("kernel.finish_rounds must be between 0 and {MAX_FINISH_ROUNDS}, got {n}"),
+                    );
+                }
+                penalty.finish_rounds = n;
+            }
             Options {
                 method,
                 batch: k.batch,
-                penalty: PenaltyParams::default(),
+                penalty,
                 fallback: if k.fallback_failed_pairs {
                     Fallback::FailedPairs
                 } else {

@@ -106,6 +106,28 @@ fn kernel_settings_are_read_and_bad_ones_refused() {
     let e = parse(&text.replace("\"dynamic\"", "\"eager\"")).unwrap_err();
     assert!(e.cause.contains("unknown schedule `eager`"), "{e}");
     assert_eq!(e.line, 22, "{e}");
+    // The penalty kernel's iterations and finish rounds, for the methods that run it.
+    let tuned = parse(&format!("{text}iterations = 6\nfinish_rounds = 0\n")).unwrap();
+    assert_eq!(tuned.kernel.penalty.max_iterations, 6);
+    assert_eq!(tuned.kernel.penalty.finish_rounds, 0);
+    let default = dem::distance::PenaltyParams::default();
+    assert_eq!(s.kernel.penalty, default);
+    for (bad, what) in [
+        ("iterations = 0\n", "kernel.iterations must be between 1"),
+        ("iterations = 256\n", "kernel.iterations must be between 1"),
+        (
+            "finish_rounds = 9\n",
+            "kernel.finish_rounds must be between 0",
+        ),
+        (
+            "method = \"brute\"\nfinish_rounds = 1\n",
+            "method = \"brute\" does not run",
+        ),
+    ] {
+        let e = parse(&format!("{text}{bad}")).unwrap_err();
+        assert!(e.cause.contains(what), "{bad}: {e}");
+        assert_eq!(e.line, 22, "{e}");
+    }
     let guided = parse(&text.replace("\"dynamic\"", "\"guided\"")).unwrap();
     assert_eq!(
         guided.kernel.threading.schedule,
