@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Every check CI makes: formatting, clippy with warnings as errors, and all tests
+# Every check CI makes: formatting, clippy with warnings as errors, the API docs
+# without broken links, and all tests
 # (multi-rank ones included: they start mpirun themselves). Installs what is missing first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,5 +11,7 @@ echo "== cargo fmt --check"
 cargo fmt --all -- --check
 echo "== cargo clippy"
 cargo clippy --workspace --all-targets --release -- -D warnings
+echo "== cargo doc"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== cargo test"
 cargo test --workspace --release

@@ -6,7 +6,7 @@ use crate::Aabb;
 #[derive(Debug, Clone, PartialEq)]
 pub enum Node {
     Leaf(i32),
-    /// Points with x[dim] <= value go left.
+    /// Points with `x[dim] <= value` go left.
     Cut {
         dim: usize,
         value: f64,

@@ -12,7 +12,7 @@
 //!    detection task that needs them (`TriangleSet::fill_group`), on the
 //!    core that then reads them.
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
-//!    ([`broad_phase`]).
+//!    (`broad_phase.rs`).
 //! 2. Triangle culling: only triangles whose inflated boxes overlap the other
 //!    body's box, only pairs of those whose inflated boxes overlap, and only
 //!    pairs that neither triangle's plane separates by more than the halo sum

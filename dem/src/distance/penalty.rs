@@ -13,7 +13,7 @@
 //! vectors in three dimensions) and doubly so for parallel faces.
 //!
 //! The penalty answer is then *finished* exactly on the feature pair it
-//! identifies and *certified* ([`super::penalty_finish`]): a pair is reported as
+//! identifies and *certified* (`penalty_finish.rs`): a pair is reported as
 //! converged only when its answer is proven within `tol * L` of the true
 //! distance, L the diagonal of the pair's bounding box. Every stage is a loop
 //! over the lanes of the batch, so the whole kernel runs in SIMD registers.
