@@ -202,7 +202,8 @@ impl TriangleSet {
         }
         let group = &self.groups[g];
         let body = &world.bodies[group.body as usize];
-        let halo = self.poses[g].map_or(0.0, |p| p.2);
+        // A group goes STALE only in `follow_world`, which records its pose.
+        let halo = self.poses[g].expect("a stale group has a recorded pose").2;
         let mesh = &world.shapes[body.shape];
         world_vertices(body, mesh, vertices);
         for (slot, t) in self.triangles[group.owned.clone()]
