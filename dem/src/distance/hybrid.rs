@@ -16,7 +16,9 @@ use super::distance_triangle_triangle_batch::{
 };
 use super::isa::Isa;
 use super::pair_source::{chunk_ranges, PairSource, Window};
-use super::penalty::{dummy_closest, penalty_many, PenaltyParams, PenaltyStats, UnsupportedBatch};
+use super::penalty::{
+    dummy_closest, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
+};
 use super::{Closest, Triangle};
 use rayon::prelude::*;
 
@@ -274,7 +276,8 @@ fn serial_chunk<P: PairSource + ?Sized>(
             for r in chunk_ranges(pairs.len(), opts.batch) {
                 let p = Window::new(pairs, r.clone());
                 let (o, s) = (&mut out[r.clone()], &mut stats[r.clone()]);
-                penalty_many(&p, opts.batch, &opts.penalty, o, s).expect("batch size checked");
+                penalty_many_on(&p, opts.batch, &opts.penalty, isa, o, s)
+                    .expect("batch size checked");
                 let certified = s.iter().filter(|x| x.converged).count();
                 counts.certified += certified;
                 if opts.method == Method::Hybrid && certified < p.len() {
