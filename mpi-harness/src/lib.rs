@@ -255,6 +255,14 @@ impl MpiRun {
         for (k, v) in open_mpi_local_env() {
             cmd.env(k, v);
         }
+        // Open MPI 4 keeps a run's session files under $TMPDIR/ompi.<host>.<uid>,
+        // and mpiruns started at the same moment (tests run in parallel) race
+        // to create that directory: "mkdir ... File exists", then orte_init
+        // fails (open-mpi/ompi#8510; it failed CI once here). A directory of
+        // its own per run avoids the race.
+        let session = dir.join("mpi-session");
+        fs::create_dir_all(&session)?;
+        cmd.env("OMPI_MCA_orte_tmpdir_base", &session);
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
