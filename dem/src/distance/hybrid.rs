@@ -309,8 +309,9 @@ fn serial_chunk<P: PairSource + ?Sized>(
 ///
 /// A batch runs as soon as it is full, while its pairs and answers are still
 /// in cache: gathering a whole share first and recomputing at the end read
-/// every failed pair back from memory (with 200,000 random pairs that made
-/// the 6% failed pairs cost 150 ns each instead of the brute force's 65).
+/// every failed pair back from memory (with 200,000 random pairs, each of the
+/// 6% failed pairs then cost two to three times a brute-force pair; see
+/// docs/distance.md, session 11).
 struct FailedPairs {
     isa: Isa,
     /// Indices into the pairs of the waiting pairs, and copies of them.
