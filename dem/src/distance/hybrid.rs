@@ -307,16 +307,16 @@ fn serial_chunk<P: PairSource + ?Sized>(
 
 /// Uncertified pairs gathered into full SIMD batches of the brute force.
 ///
-/// A batch runs as soon as it is full, while its pairs and answers are still
-/// in cache: gathering a whole share first and recomputing at the end read
+/// The brute force runs as soon as a few batches are full, while their pairs
+/// and answers are still in cache: gathering a whole share first and recomputing at the end read
 /// every failed pair back from memory (with 200,000 random pairs, each of the
 /// 6% failed pairs then cost two to three times a brute-force pair; see
 /// docs/distance.md, session 11).
 struct FailedPairs {
     isa: Isa,
     /// Indices into the pairs of the waiting pairs, and copies of them.
-    index: [usize; BRUTE_LANES],
-    buf: [(Triangle, Triangle); BRUTE_LANES],
+    index: [usize; FAILED_QUEUE],
+    buf: [(Triangle, Triangle); FAILED_QUEUE],
     len: usize,
 }
 
@@ -325,8 +325,8 @@ impl FailedPairs {
         let zero = [glam::DVec3::ZERO; 3];
         FailedPairs {
             isa,
-            index: [0; BRUTE_LANES],
-            buf: [(zero, zero); BRUTE_LANES],
+            index: [0; FAILED_QUEUE],
+            buf: [(zero, zero); FAILED_QUEUE],
             len: 0,
         }
     }
@@ -337,7 +337,7 @@ impl FailedPairs {
         self.index[self.len] = k;
         self.buf[self.len] = (*a, *b);
         self.len += 1;
-        if self.len == BRUTE_LANES {
+        if self.len == FAILED_QUEUE {
             self.flush(out);
         }
     }
@@ -349,13 +349,24 @@ impl FailedPairs {
             return;
         }
         let mut res = [out[self.index[0]]; BRUTE_LANES];
-        distance_triangle_triangle_batch(&self.buf[..n], self.isa, &mut res[..n]);
-        for (&k, r) in self.index[..n].iter().zip(&res) {
-            out[k] = *r;
+        for r in chunk_ranges(n, BRUTE_LANES) {
+            let m = r.len();
+            distance_triangle_triangle_batch(&self.buf[r.clone()], self.isa, &mut res[..m]);
+            for (&k, x) in self.index[r].iter().zip(&res[..m]) {
+                out[k] = *x;
+            }
         }
         self.len = 0;
     }
 }
+
+/// Failed pairs queued before the brute force runs on them: four of its
+/// batches at a time, so the two kernels' code takes turns in the instruction
+/// cache less often, while the queued pairs (some 500 pairs back at a 6%
+/// failure rate) are still in the data cache. Measured against one batch at a
+/// time: hybrid over penalty 1.10-1.12 against 1.12-1.14 (docs/distance.md).
+const FAILED_QUEUE: usize = QUEUE_BATCHES * BRUTE_LANES;
+const QUEUE_BATCHES: usize = 4;
 
 /// Distances of all pairs with the given options, into fresh buffers.
 pub fn distances(
