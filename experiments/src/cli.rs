@@ -1,5 +1,6 @@
 //! Command-line interface: one subcommand per experiment.
 
+use crate::stats::Statistic;
 use clap::{Args, Parser, Subcommand};
 use dem::distance::{Method, PenaltyParams, Schedule};
 use std::path::PathBuf;
@@ -155,9 +156,13 @@ pub struct KernelsArgs {
     /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
     #[arg(long, default_value_t = 8)]
     pub batch: usize,
-    /// Timed repetitions per measurement (the median is reported).
+    /// Timed repetitions per measurement (summarised by --statistic).
     #[arg(long, default_value_t = 5)]
     pub repeat: usize,
+    /// What each time is: the median of the repetitions, or the minimum (on a
+    /// machine whose speed swings, the least disturbed run).
+    #[arg(long, value_enum, default_value_t = Statistic::Median)]
+    pub statistic: Statistic,
     /// Print a JSON array instead of a table.
     #[arg(long)]
     pub json: bool,

@@ -1,13 +1,13 @@
 //! `tridem kernels`: the triangle-distance benchmark and the accuracy-vs-time sweep.
 //!
 //! Every number is measured in this run, side by side on the same pairs: the
-//! rows run in alternating rounds and each time is the median over rounds, so
-//! ratios between rows are what to read.
+//! rows run in alternating rounds and each time is the median (or, with
+//! `--statistic min`, the minimum) over rounds, so ratios between rows are
+//! what to read.
 
 use crate::cli::KernelsArgs;
 use crate::error::{create_output_dir, CliError, CliResult};
 use crate::plot;
-use crate::stats::median;
 use dem::distance::{
     distance_many, distances, pair_scale, penalty::BATCH_SIZES, penalty_many_on, penalty_scalar,
     random_unit_pairs, Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams,
@@ -26,6 +26,8 @@ pub struct Row {
     pub schedule: String,
     pub batch: usize,
     pub ns_per_pair: f64,
+    /// How `ns_per_pair` summarises the repetitions: "median" or "min".
+    pub statistic: String,
     pub fallback_rate: Option<f64>,
     pub certified_rate: Option<f64>,
 }
@@ -188,7 +190,8 @@ pub fn run(args: &KernelsArgs) -> CliResult {
                     "serial".into()
                 },
                 batch: args.batch,
-                ns_per_pair: median(m.times),
+                ns_per_pair: args.statistic.of(m.times),
+                statistic: args.statistic.name().into(),
                 fallback_rate: m
                     .counts
                     .filter(|_| hybrid)
@@ -211,13 +214,13 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             serde_json::to_string_pretty(&rows).expect("rows serialise")
         );
     } else {
-        print_table(&rows, args.pairs, args.seed);
+        print_table(&rows, args.pairs, args.seed, args.statistic.name());
     }
     Ok(())
 }
 
-fn print_table(rows: &[Row], pairs: usize, seed: u64) {
-    println!("{pairs} random pairs in the unit cube (seed {seed}); median ns per pair");
+fn print_table(rows: &[Row], pairs: usize, seed: u64, statistic: &str) {
+    println!("{pairs} random pairs in the unit cube (seed {seed}); {statistic} ns per pair");
     println!(
         "{:<8} {:<22} {:<9} {:>7} {:<8} {:>5} {:>11} {:>9} {:>9}",
         "method",
@@ -389,7 +392,8 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     let mut points = Vec::new();
     let mut csv = String::from("sweep,iterations,penalty,tol,batch,finish_rounds,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L\n");
     for (&(sweep, prm, batch), row) in settings.iter().zip(rows) {
-        let (pen_ns, hyb_ns) = (median(row.pen_ns), median(row.hyb_ns));
+        let stat = args.statistic;
+        let (pen_ns, hyb_ns) = (stat.of(row.pen_ns), stat.of(row.hyb_ns));
         csv.push_str(&format!(
             "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e}\n",
             prm.max_iterations,

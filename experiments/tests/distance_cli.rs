@@ -138,6 +138,8 @@ fn kernels_json_has_the_documented_fields() {
             "1",
             "--threads",
             "2",
+            "--statistic",
+            "min",
             "--json",
         ],
         "",
@@ -153,6 +155,7 @@ fn kernels_json_has_the_documented_fields() {
             assert!(!r[k].is_null(), "{k} missing in {r}");
         }
         assert!(r["ns_per_pair"].as_f64().unwrap() > 0.0);
+        assert_eq!(r["statistic"], "min", "{r}");
     }
     let hybrid = rows.iter().find(|r| r["method"] == "hybrid").unwrap();
     let rate = hybrid["fallback_rate"].as_f64().unwrap();
@@ -174,6 +177,10 @@ fn kernels_refuses_bad_options_without_a_panic() {
         (
             &["kernels", "--accuracy", "--pairs", "100", "--batch", "5"][..],
             "--batch 5",
+        ),
+        (
+            &["kernels", "--pairs", "100", "--statistic", "mean"][..],
+            "--statistic",
         ),
     ] {
         let (code, out, err) = tridem(args, "");
