@@ -364,7 +364,7 @@ impl FailedPairs {
 /// batches at a time, so the two kernels' code takes turns in the instruction
 /// cache less often, while the queued pairs (some 500 pairs back at a 6%
 /// failure rate) are still in the data cache. Measured against one batch at a
-/// time: hybrid over penalty 1.10-1.12 against 1.12-1.14 (docs/distance.md).
+/// time: hybrid over penalty 1.10-1.11 against 1.12-1.13 (docs/distance.md).
 const FAILED_QUEUE: usize = QUEUE_BATCHES * BRUTE_LANES;
 const QUEUE_BATCHES: usize = 4;
 
