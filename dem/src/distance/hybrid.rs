@@ -308,10 +308,10 @@ fn serial_chunk<P: PairSource + ?Sized>(
 /// Uncertified pairs gathered into full SIMD batches of the brute force.
 ///
 /// The brute force runs as soon as a few batches are full, while their pairs
-/// and answers are still in cache: gathering a whole share first and recomputing at the end read
-/// every failed pair back from memory (with 200,000 random pairs, each of the
-/// 6% failed pairs then cost two to three times a brute-force pair; see
-/// docs/distance.md, session 11).
+/// and answers are still in cache: gathering a whole share first and
+/// recomputing at the end read every failed pair back from memory (with
+/// 200,000 random pairs, each of the 6% failed pairs then cost two to three
+/// times a brute-force pair; see docs/distance.md, session 11).
 struct FailedPairs {
     isa: Isa,
     /// Indices into the pairs of the waiting pairs, and copies of them.
@@ -331,7 +331,7 @@ impl FailedPairs {
         }
     }
 
-    /// Queues pair `k`; runs the batch when it is full.
+    /// Queues pair `k`; runs the brute force when the queue is full.
     fn push<P: PairSource + ?Sized>(&mut self, pairs: &P, k: usize, out: &mut [Closest]) {
         let (a, b) = pairs.pair(k);
         self.index[self.len] = k;
