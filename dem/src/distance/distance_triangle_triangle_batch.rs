@@ -14,9 +14,11 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::isa::Isa;
+use super::pair_lanes::{load_pairs, store_answers, AnswerLanes, PairLanes};
+#[cfg(target_arch = "x86_64")]
+use super::pair_lanes::{load_pairs_avx512, store_answers_avx512};
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::{Closest, Solver};
-use glam::DVec3;
 
 /// Pairs per SIMD batch of the brute force.
 pub const LANES: usize = 8;
@@ -247,16 +249,64 @@ fn batch(pk: &Packed) -> (V3, V3) {
     (best.p, best.q)
 }
 
+/// The brute force on one batch, from the pairs' coordinates to their
+/// answers: distances, and closest points in the pairs' own coordinates.
+#[inline(always)]
+fn batch_from_lanes(lanes: &PairLanes<LANES>) -> (L, V3, V3) {
+    // Local frame: the first vertex of A is the origin, exactly zero, as in
+    // the scalar version.
+    let mut pk = Packed {
+        a: [[[0.0; LANES]; 3]; 3],
+        b: [[[0.0; LANES]; 3]; 3],
+    };
+    let origin = &lanes[0];
+    for v in 0..3 {
+        for k in 0..3 {
+            for l in 0..LANES {
+                if v > 0 {
+                    pk.a[v][k][l] = lanes[v][k][l] - origin[k][l];
+                }
+                pk.b[v][k][l] = lanes[3 + v][k][l] - origin[k][l];
+            }
+        }
+    }
+    let (mut p, mut q) = batch(&pk);
+    let mut distance = [0.0; LANES];
+    for l in 0..LANES {
+        let d = sub(&p, &q, l);
+        distance[l] = dot(d, d).sqrt();
+    }
+    for k in 0..3 {
+        for l in 0..LANES {
+            p[k][l] += origin[k][l];
+            q[k][l] += origin[k][l];
+        }
+    }
+    (distance, p, q)
+}
+
+#[inline(always)]
+fn answers<'a>((distance, p, q): &'a (L, V3, V3)) -> AnswerLanes<'a, LANES> {
+    AnswerLanes {
+        distance,
+        p: [&p[0], &p[1], &p[2]],
+        q: [&q[0], &q[1], &q[2]],
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-unsafe fn batch_avx512(pk: &Packed) -> (V3, V3) {
-    batch(pk)
+unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
+    // SAFETY: this function's caller guarantees AVX-512F.
+    let found = batch_from_lanes(&unsafe { load_pairs_avx512(pairs) });
+    unsafe { store_answers_avx512(&answers(&found), Solver::Brute, out) };
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn batch_avx2(pk: &Packed) -> (V3, V3) {
-    batch(pk)
+unsafe fn batch_avx2<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
+    let found = batch_from_lanes(&load_pairs(pairs));
+    store_answers(&answers(&found), Solver::Brute, out);
 }
 
 /// Exact distances of up to `LANES` pairs at once (`out.len() == pairs.len()`).
@@ -269,44 +319,16 @@ pub fn distance_triangle_triangle_batch<P: PairSource + ?Sized>(
     if pairs.is_empty() {
         return;
     }
-    let mut pk = Packed {
-        a: [[[0.0; LANES]; 3]; 3],
-        b: [[[0.0; LANES]; 3]; 3],
-    };
-    let mut origin = [DVec3::ZERO; LANES];
-    for l in 0..LANES {
-        let (a, b) = pairs.pair(l.min(pairs.len() - 1));
-        let o = a[0];
-        origin[l] = o;
-        for v in 0..3 {
-            let (x, y) = (a[v] - o, b[v] - o);
-            for k in 0..3 {
-                pk.a[v][k][l] = x[k];
-                pk.b[v][k][l] = y[k];
-            }
-        }
-        // The first vertex of A is exactly the origin, as in the scalar version.
-        for k in 0..3 {
-            pk.a[0][k][l] = 0.0;
-        }
-    }
-    let (p, q) = match isa.available() {
+    match isa.available() {
         // SAFETY: `Isa::available` checked these features on this CPU.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => unsafe { batch_avx512(&pk) },
+        Isa::Avx512 => unsafe { batch_avx512(pairs, out) },
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 => unsafe { batch_avx2(&pk) },
-        _ => batch(&pk),
-    };
-    for (l, o) in out.iter_mut().enumerate() {
-        let pl = DVec3::new(p[0][l], p[1][l], p[2][l]);
-        let ql = DVec3::new(q[0][l], q[1][l], q[2][l]);
-        *o = Closest {
-            distance: (pl - ql).length(),
-            p: pl + origin[l],
-            q: ql + origin[l],
-            solver: Solver::Brute,
-        };
+        Isa::Avx2 => unsafe { batch_avx2(pairs, out) },
+        _ => {
+            let found = batch_from_lanes(&load_pairs(pairs));
+            store_answers(&answers(&found), Solver::Brute, out)
+        }
     }
 }
 

@@ -19,6 +19,7 @@ mod distance_triangle_triangle_batch;
 pub mod hybrid;
 mod isa;
 mod lanes;
+mod pair_lanes;
 mod pair_source;
 pub mod penalty;
 mod penalty_finish;
@@ -65,7 +66,11 @@ impl Solver {
 }
 
 /// The minimum distance between two triangles and where it is attained.
+///
+/// `repr(C)`: the SIMD kernels write the distance and points of eight answers
+/// with one vector store each (`pair_lanes.rs`).
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct Closest {
     pub distance: f64,
     /// Closest point on the first triangle.

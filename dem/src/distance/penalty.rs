@@ -22,6 +22,9 @@
 
 use super::isa::Isa;
 use super::lanes::{F, V3};
+#[cfg(target_arch = "x86_64")]
+use super::pair_lanes::load_pairs_avx512;
+use super::pair_lanes::{load_pairs, store_answers_on, AnswerLanes, PairLanes};
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty_finish::{finish_lanes, Finished};
 use super::solve_spd4::{solve_spd4_by_blocks, Sym4, SYM4_INDEX};
@@ -85,26 +88,17 @@ pub(crate) struct Batch<const N: usize> {
 }
 
 impl<const N: usize> Batch<N> {
-    /// Packs up to N pairs; missing lanes repeat the last pair (their results are ignored).
-    fn pack<P: PairSource + ?Sized>(pairs: &P) -> Self {
-        let zero = V3([F::splat(0.0); 3]);
-        let mut batch = Batch {
-            w: zero,
-            u: [zero; 4],
-        };
-        for lane in 0..N {
-            let (a, b) = pairs.pair(lane.min(pairs.len() - 1));
-            let o = a[0];
-            let ws = o - b[0];
-            let us = [a[1] - o, a[2] - o, b[0] - b[1], b[0] - b[2]];
-            for k in 0..3 {
-                batch.w.0[k].0[lane] = ws[k];
-                for (i, ui) in us.iter().enumerate() {
-                    batch.u[i].0[k].0[lane] = ui[k];
-                }
-            }
+    /// The pairs' vectors in each pair's local frame, subtracted lane by lane
+    /// in vector registers (the same roundings as pair by pair).
+    #[inline(always)]
+    fn from_lanes(v: &PairLanes<N>) -> Self {
+        let vertex = |i: usize| V3([F(v[i][0]), F(v[i][1]), F(v[i][2])]);
+        let (a0, a1, a2) = (vertex(0), vertex(1), vertex(2));
+        let (b0, b1, b2) = (vertex(3), vertex(4), vertex(5));
+        Batch {
+            w: a0 - b0,
+            u: [a1 - a0, a2 - a0, b0 - b1, b0 - b2],
         }
-        batch
     }
 }
 
@@ -202,33 +196,55 @@ const MIN_REGULARISATION: f64 = 1e-12;
 /// Newton steps below this (in barycentric units) count as settled.
 const STEP_TOL: f64 = 1e-12;
 
-/// Newton, then finish and certificate: the whole kernel on one batch.
+/// Newton, then finish and certificate: the whole kernel on one batch. It
+/// runs in each pair's local frame; the closest points come back to the
+/// pairs' own coordinates at the end.
 #[inline(always)]
-fn kernel<const N: usize>(batch: &Batch<N>, prm: &PenaltyParams) -> (Finished<N>, [u8; N]) {
-    let (s, scale, iters) = newton_lanes(batch, prm);
-    (finish_lanes(batch, s, scale, prm), iters)
+fn kernel<const N: usize>(lanes: &PairLanes<N>, prm: &PenaltyParams) -> (Finished<N>, [u8; N]) {
+    let batch = Batch::from_lanes(lanes);
+    let (s, scale, iters) = newton_lanes(&batch, prm);
+    let mut f = finish_lanes(&batch, s, scale, prm);
+    let origin = V3([F(lanes[0][0]), F(lanes[0][1]), F(lanes[0][2])]);
+    f.p = f.p + origin;
+    f.q = f.q + origin;
+    (f, iters)
 }
+
+// The answers are stored by the caller, outside these wrappers: stored
+// inside, the kernel's loops came out as 128- and 256-bit and scalar code
+// (penalty 52 -> 96 ns/pair).
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-unsafe fn kernel_avx512<const N: usize>(b: &Batch<N>, p: &PenaltyParams) -> (Finished<N>, [u8; N]) {
-    kernel(b, p)
+unsafe fn kernel_avx512<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
+    prm: &PenaltyParams,
+) -> (Finished<N>, [u8; N]) {
+    // SAFETY: this function's caller guarantees AVX-512F.
+    kernel(&unsafe { load_pairs_avx512(pairs) }, prm)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn kernel_avx2<const N: usize>(b: &Batch<N>, p: &PenaltyParams) -> (Finished<N>, [u8; N]) {
-    kernel(b, p)
+unsafe fn kernel_avx2<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
+    prm: &PenaltyParams,
+) -> (Finished<N>, [u8; N]) {
+    kernel(&load_pairs(pairs), prm)
 }
 
-fn kernel_on<const N: usize>(b: &Batch<N>, p: &PenaltyParams, isa: Isa) -> (Finished<N>, [u8; N]) {
+fn kernel_on<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
+    prm: &PenaltyParams,
+    isa: Isa,
+) -> (Finished<N>, [u8; N]) {
     match isa {
         // SAFETY: `isa` comes from `Isa::available`, so this CPU has the features.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => unsafe { kernel_avx512(b, p) },
+        Isa::Avx512 => unsafe { kernel_avx512(pairs, prm) },
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2 => unsafe { kernel_avx2(b, p) },
-        _ => kernel(b, p),
+        Isa::Avx2 => unsafe { kernel_avx2(pairs, prm) },
+        _ => kernel(&load_pairs(pairs), prm),
     }
 }
 
@@ -241,16 +257,14 @@ fn penalty_batch_n<const N: usize, P: PairSource + ?Sized>(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) {
-    let batch = Batch::<N>::pack(pairs);
-    let (f, iters) = kernel_on(&batch, prm, isa);
+    let (f, iters) = kernel_on::<N, _>(pairs, prm, isa);
+    let answers = AnswerLanes {
+        distance: &f.distance.0,
+        p: [&f.p.0[0].0, &f.p.0[1].0, &f.p.0[2].0],
+        q: [&f.q.0[0].0, &f.q.0[1].0, &f.q.0[2].0],
+    };
+    store_answers_on(&answers, Solver::Penalty, isa, out);
     for lane in 0..pairs.len() {
-        let o = pairs.pair(lane).0[0];
-        out[lane] = Closest {
-            distance: f.distance.0[lane],
-            p: DVec3::new(f.p.0[0].0[lane], f.p.0[1].0[lane], f.p.0[2].0[lane]) + o,
-            q: DVec3::new(f.q.0[0].0[lane], f.q.0[1].0[lane], f.q.0[2].0[lane]) + o,
-            solver: Solver::Penalty,
-        };
         stats[lane] = PenaltyStats {
             converged: f.certified.lane(lane),
             iterations: iters[lane],
