@@ -16,7 +16,9 @@ use super::distance_triangle_triangle_batch::{
 };
 use super::isa::Isa;
 use super::pair_source::{chunk_ranges, PairSource, Window};
-use super::penalty::{batch_kernel, dummy_closest, PenaltyParams, PenaltyStats, UnsupportedBatch};
+use super::penalty::{
+    dummy_closest, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
+};
 use super::{Closest, Triangle};
 use rayon::prelude::*;
 
@@ -271,11 +273,11 @@ fn serial_chunk<P: PairSource + ?Sized>(
         }
         Method::Penalty | Method::Hybrid => {
             let mut failed = FailedPairs::new(isa);
-            let kernel = batch_kernel::<Window<P>>(opts.batch).expect("batch size checked");
             for r in chunk_ranges(pairs.len(), opts.batch) {
                 let p = Window::new(pairs, r.clone());
                 let (o, s) = (&mut out[r.clone()], &mut stats[r.clone()]);
-                kernel(&p, &opts.penalty, isa, o, s);
+                penalty_many_on(&p, opts.batch, &opts.penalty, isa, o, s)
+                    .expect("batch size checked");
                 let certified = s.iter().filter(|x| x.converged).count();
                 counts.certified += certified;
                 if opts.method == Method::Hybrid && certified < p.len() {

@@ -299,54 +299,29 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
     let isa = isa.available();
     assert_eq!(pairs.len(), out.len());
     assert_eq!(pairs.len(), stats.len());
-    let kernel = batch_kernel::<Window<P>>(batch)?;
-    for r in chunk_ranges(pairs.len(), batch) {
-        let window = Window::new(pairs, r.clone());
-        kernel(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
+    macro_rules! run {
+        ($n:literal) => {
+            for r in chunk_ranges(pairs.len(), $n) {
+                let window = Window::new(pairs, r.clone());
+                penalty_batch_n::<$n, _>(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
+            }
+        };
     }
-    Ok(())
-}
-
-/// The penalty kernel on one batch of up to `batch` pairs, as a function
-/// chosen once: the answers and statistics of the pairs, on an instruction
-/// set available on this CPU.
-pub(crate) type BatchKernel<P> = fn(&P, &PenaltyParams, Isa, &mut [Closest], &mut [PenaltyStats]);
-
-/// The kernel for batches of `batch` pairs. Callers choose it once per share
-/// of pairs: choosing per batch (the size match, the ISA check, a window and
-/// a loop around a single batch) cost about 3 ns/pair at batch 8 (200,000
-/// pairs through the hybrid's serial loop, minimum of 25 rounds, six
-/// alternating runs: penalty 52.1 -> 48.7, hybrid 57.7 -> 55.1 ns/pair).
-pub(crate) fn batch_kernel<P: PairSource + ?Sized>(
-    batch: usize,
-) -> Result<BatchKernel<P>, UnsupportedBatch> {
-    Ok(match batch {
-        1 => penalty_batch_n::<1, P>,
-        2 => penalty_batch_n::<2, P>,
-        4 => penalty_batch_n::<4, P>,
-        8 => penalty_batch_n::<8, P>,
-        16 => penalty_batch_n::<16, P>,
+    match batch {
+        1 => run!(1),
+        2 => run!(2),
+        4 => run!(4),
+        8 => run!(8),
+        16 => run!(16),
         // Wider batches run as 16-lane blocks: no register file holds 32 or 64
         // lanes, the full-width kernel spilled and measured slower (32: 483 ns
         // against 213 ns at 16), and compiling it tripled the crate's build
         // time. Answers do not depend on the blocking; what the batch size
         // still decides is the hybrid's fallback unit (see `hybrid`).
-        32 | 64 => penalty_blocks_16::<P>,
+        32 | 64 => run!(16),
         _ => return Err(UnsupportedBatch(batch)),
-    })
-}
-
-fn penalty_blocks_16<P: PairSource + ?Sized>(
-    pairs: &P,
-    prm: &PenaltyParams,
-    isa: Isa,
-    out: &mut [Closest],
-    stats: &mut [PenaltyStats],
-) {
-    for r in chunk_ranges(pairs.len(), 16) {
-        let window = Window::new(pairs, r.clone());
-        penalty_batch_n::<16, _>(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
     }
+    Ok(())
 }
 
 /// Penalty on one pair with scalar code: the reference the SIMD speed-up is
