@@ -17,7 +17,7 @@ use super::distance_triangle_triangle_batch::{
 use super::isa::Isa;
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty::{
-    dummy_closest, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
+    dummy_closest, penalty_batch_on, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
 };
 use super::{Closest, Triangle};
 use rayon::prelude::*;
@@ -272,37 +272,61 @@ fn serial_chunk<P: PairSource + ?Sized>(
             }
         }
         Method::Penalty | Method::Hybrid => {
-            let mut failed = FailedPairs::new(isa);
-            for r in chunk_ranges(pairs.len(), opts.batch) {
-                let p = Window::new(pairs, r.clone());
-                let (o, s) = (&mut out[r.clone()], &mut stats[r.clone()]);
-                penalty_many_on(&p, opts.batch, &opts.penalty, isa, o, s)
-                    .expect("batch size checked");
-                let certified = s.iter().filter(|x| x.converged).count();
-                counts.certified += certified;
-                if opts.method == Method::Hybrid && certified < p.len() {
-                    counts.fallback_batches += 1;
-                    match opts.fallback {
-                        Fallback::WholeBatch => {
-                            for rr in chunk_ranges(p.len(), BRUTE_LANES) {
-                                let pp = Window::new(&p, rr.clone());
-                                distance_triangle_triangle_batch(&pp, isa, &mut o[rr]);
-                            }
-                            counts.fallback_pairs += p.len();
-                        }
-                        Fallback::FailedPairs => {
-                            for k in r.filter(|&k| !stats[k].converged) {
-                                counts.fallback_pairs += 1;
-                                failed.push(pairs, k, out);
-                            }
-                        }
-                    }
-                }
-            }
-            failed.flush(out);
+            let run = match opts.batch {
+                1 => penalty_share::<1, P>,
+                2 => penalty_share::<2, P>,
+                4 => penalty_share::<4, P>,
+                8 => penalty_share::<8, P>,
+                _ => penalty_share::<16, P>,
+            };
+            run(pairs, opts, isa, out, stats, &mut counts);
         }
     }
     counts
+}
+
+/// The penalty (and the hybrid's fallback) on one share, batch by batch,
+/// with the batch kernel of `N` lanes called directly (`N` the batch size, or
+/// 16 for batches of 32 and 64, which run as 16-lane blocks).
+fn penalty_share<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
+    opts: &Options,
+    isa: Isa,
+    out: &mut [Closest],
+    stats: &mut [PenaltyStats],
+    counts: &mut Counts,
+) {
+    let mut failed = FailedPairs::new(isa);
+    for r in chunk_ranges(pairs.len(), opts.batch) {
+        let p = Window::new(pairs, r.clone());
+        let (o, s) = (&mut out[r.clone()], &mut stats[r.clone()]);
+        if opts.batch == N {
+            penalty_batch_on::<N, _>(&p, &opts.penalty, isa, o, s);
+        } else {
+            penalty_many_on(&p, opts.batch, &opts.penalty, isa, o, s).expect("batch size checked");
+        }
+        let certified = s.iter().filter(|x| x.converged).count();
+        counts.certified += certified;
+        if opts.method == Method::Hybrid && certified < p.len() {
+            counts.fallback_batches += 1;
+            match opts.fallback {
+                Fallback::WholeBatch => {
+                    for rr in chunk_ranges(p.len(), BRUTE_LANES) {
+                        let pp = Window::new(&p, rr.clone());
+                        distance_triangle_triangle_batch(&pp, isa, &mut o[rr]);
+                    }
+                    counts.fallback_pairs += p.len();
+                }
+                Fallback::FailedPairs => {
+                    for k in r.filter(|&k| !stats[k].converged) {
+                        counts.fallback_pairs += 1;
+                        failed.push(pairs, k, out);
+                    }
+                }
+            }
+        }
+    }
+    failed.flush(out);
 }
 
 /// Uncertified pairs gathered into full SIMD batches of the brute force.

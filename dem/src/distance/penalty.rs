@@ -250,7 +250,7 @@ fn kernel_on<const N: usize, P: PairSource + ?Sized>(
 
 /// Runs the penalty kernel on up to `N` pairs (one SIMD batch) and writes the
 /// answers and per-pair statistics. `isa` must be available on this CPU.
-fn penalty_batch_n<const N: usize, P: PairSource + ?Sized>(
+pub(crate) fn penalty_batch_on<const N: usize, P: PairSource + ?Sized>(
     pairs: &P,
     prm: &PenaltyParams,
     isa: Isa,
@@ -303,7 +303,7 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
         ($n:literal) => {
             for r in chunk_ranges(pairs.len(), $n) {
                 let window = Window::new(pairs, r.clone());
-                penalty_batch_n::<$n, _>(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
+                penalty_batch_on::<$n, _>(&window, prm, isa, &mut out[r.clone()], &mut stats[r]);
             }
         };
     }
@@ -329,7 +329,7 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
 pub fn penalty_scalar(a: &Triangle, b: &Triangle, prm: &PenaltyParams) -> (Closest, PenaltyStats) {
     let mut out = [dummy_closest()];
     let mut stats = [PenaltyStats::default()];
-    penalty_batch_n::<1, _>(&[(*a, *b)][..], prm, Isa::Baseline, &mut out, &mut stats);
+    penalty_batch_on::<1, _>(&[(*a, *b)][..], prm, Isa::Baseline, &mut out, &mut stats);
     (out[0], stats[0])
 }
 
