@@ -59,6 +59,20 @@ pub fn half_kick(b: &mut Body, force: DVec3, torque: DVec3, h: f64, rotation: bo
     }
 }
 
+/// A bound on how far any point of `after`'s shape moved from its pose
+/// `before` (position, orientation), for a shape whose vertices lie within
+/// `radius` of the body's origin. A point at r from the origin moves by
+/// |Δx| + |ΔR r| at most, and a rotation by θ moves it by the chord
+/// 2 |r| sin(θ/2) = 2 |r| |v| for v the vector part of the relative
+/// quaternion. The margins cover the rounding of these terms and of the
+/// world vertices computed at either pose.
+pub fn travel_bound(before: (DVec3, DQuat), after: &Body, radius: f64) -> f64 {
+    let (x, q) = before;
+    let turn = after.q * q.conjugate();
+    let exact = (after.x - x).length() + 2.0 * radius * turn.xyz().length();
+    exact * (1.0 + 1e-12) + 16.0 * f64::EPSILON * (after.x.length() + radius)
+}
+
 /// Drift: positions (and orientations when rotation is on) over a full step.
 pub fn drift(b: &mut Body, h: f64, rotation: bool) {
     if b.is_static() {

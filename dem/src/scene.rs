@@ -9,7 +9,8 @@
 //!
 //! [effects]              # only these are computed
 //! gravity = { g = [0.0, 0.0, -9.81] }
-//! contact = {}           # needs stiffness, restitution, halo in every material
+//! contact = {}           # needs stiffness, restitution, halo in every material;
+//!                        # { skin = 1e-3 } keeps a neighbour list (m, see docs/dem.md)
 //! friction = {}          # needs friction in every material
 //! damping = { linear = 0.5, angular = 0.5 }
 //! rotation = {}          # without it bodies only translate
@@ -98,7 +99,7 @@ fn default_output_every() -> u64 {
 #[serde(deny_unknown_fields)]
 struct EffectsSpec {
     gravity: Option<GravitySpec>,
-    contact: Option<EmptySpec>,
+    contact: Option<ContactSpec>,
     friction: Option<EmptySpec>,
     damping: Option<DampingSpec>,
     rotation: Option<EmptySpec>,
@@ -107,6 +108,14 @@ struct EffectsSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct EmptySpec {}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ContactSpec {
+    /// Neighbour-list skin (m); 0: the broad phase runs every step.
+    #[serde(default)]
+    skin: f64,
+}
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -259,6 +268,8 @@ struct ObstacleSpec {
 pub struct Effects {
     pub gravity: Option<DVec3>,
     pub contact: bool,
+    /// The contact effect's neighbour-list skin (m; 0: no list).
+    pub contact_skin: f64,
     pub friction: bool,
     pub damping: Option<(f64, f64)>,
     pub rotation: bool,
@@ -400,6 +411,19 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             None => None,
         },
         contact: e.contact.is_some(),
+        contact_skin: match &e.contact {
+            Some(c) if c.skin >= 0.0 && c.skin.is_finite() => c.skin,
+            Some(c) => {
+                return ctx.err(
+                    eff_span,
+                    format!(
+                        "contact.skin must be a finite length >= 0 (m), got {}",
+                        c.skin
+                    ),
+                )
+            }
+            None => 0.0,
+        },
         friction: e.friction.is_some(),
         damping: match e.damping {
             Some(d)

@@ -4,7 +4,7 @@ use crate::effects::{
     ContactEffect, DampingEffect, Effect, Forces, FrictionEffect, GravityEffect, StepContext,
     StepStats,
 };
-use crate::integrate::{drift, half_kick};
+use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
 use crate::timing::{seconds_since, SectionTimes};
 use crate::world::World;
@@ -25,6 +25,8 @@ pub struct Simulation {
     pub dt: f64,
     rotation: bool,
     effects: Vec<Box<dyn Effect>>,
+    /// Per shape: the largest distance of a vertex from the body's origin.
+    shape_radius: Vec<f64>,
     forces: Forces,
     ctx: StepContext,
     /// Counters summed over all steps so far.
@@ -42,7 +44,11 @@ impl Simulation {
             effects.push(Box::new(GravityEffect { g }));
         }
         if scene.effects.contact {
-            effects.push(Box::new(ContactEffect::new(&world, scene.kernel)));
+            effects.push(Box::new(ContactEffect::new(
+                &world,
+                scene.kernel,
+                scene.effects.contact_skin,
+            )));
         }
         if scene.effects.friction {
             effects.push(Box::new(FrictionEffect::new(&world)));
@@ -50,10 +56,16 @@ impl Simulation {
         if let Some((linear, angular)) = scene.effects.damping {
             effects.push(Box::new(DampingEffect { linear, angular }));
         }
+        let shape_radius = world
+            .shapes
+            .iter()
+            .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
+            .collect();
         let mut sim = Simulation {
             world,
             dt: scene.dt,
             rotation: scene.effects.rotation,
+            shape_radius,
             effects,
             forces: Forces::default(),
             ctx: StepContext {
@@ -99,16 +111,23 @@ impl Simulation {
         let (h, rot) = (self.dt, self.rotation);
         let start = Instant::now();
         // Bodies are independent here; small scenes stay on one thread.
-        let forces = &self.forces;
-        self.world
+        let (forces, radius) = (&self.forces, &self.shape_radius);
+        // The largest distance any point of a body moved: the max of exact
+        // per-body bounds, the same on any thread count.
+        let moved = self
+            .world
             .bodies
             .par_iter_mut()
             .enumerate()
             .with_min_len(INTEGRATION_GRAIN)
-            .for_each(|(i, b)| {
+            .map(|(i, b)| {
                 half_kick(b, forces.force[i], forces.torque[i], h, rot);
+                let before = (b.x, b.q);
                 drift(b, h, rot);
-            });
+                travel_bound(before, b, radius[b.shape])
+            })
+            .reduce(|| 0.0, f64::max);
+        self.ctx.moved = Some(moved);
         self.timings.integration += seconds_since(start);
         self.evaluate_forces();
         let start = Instant::now();

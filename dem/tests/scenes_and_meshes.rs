@@ -62,6 +62,23 @@ fn parameters_of_undeclared_effects_are_errors() {
 }
 
 #[test]
+fn the_contact_skin_is_read_and_bad_ones_refused() {
+    assert_eq!(parse(BASE).unwrap().effects.contact_skin, 0.0);
+    let s = parse(&BASE.replace("contact = {}", "contact = { skin = 2e-4 }")).unwrap();
+    assert_eq!(s.effects.contact_skin, 2e-4);
+    for bad in ["-1e-3", "nan", "inf"] {
+        let text = BASE.replace("contact = {}", &format!("contact = {{ skin = {bad} }}"));
+        let e = parse(&text).unwrap_err();
+        assert!(e.cause.contains("contact.skin"), "{bad}: {e}");
+        // The [effects] table starts on line 6.
+        assert_eq!(e.line, 6, "{e}");
+    }
+    let text = BASE.replace("contact = {}", "contact = { skim = 1e-3 }");
+    let e = parse(&text).unwrap_err();
+    assert!(e.cause.contains("skim"), "{e}");
+}
+
+#[test]
 fn malformed_toml_names_the_line() {
     let text = BASE.replace("end_time = 0.1", "end_time = = 0.1");
     let e = parse(&text).unwrap_err();

@@ -118,6 +118,7 @@ pub fn run(args: &RunArgs) -> CliResult {
         "seconds": secs,
         "steps_per_second": steps as f64 / secs,
         "seconds_per_particle_step": secs / (steps as f64 * n),
+        "broad_phases": t.detection.broad_phases,
         "body_pairs_checked": t.detection.body_pairs,
         "triangle_pairs_checked": t.detection.triangle_pairs,
         "fallback_rate": if t.detection.triangle_pairs > 0 { t.detection.fallback_pairs as f64 / t.detection.triangle_pairs as f64 } else { 0.0 },
@@ -135,6 +136,7 @@ pub fn run(args: &RunArgs) -> CliResult {
             steps as f64 / secs
         );
         println!("cost per particle-step {:.3e} s", secs / (steps as f64 * n));
+        println!("broad phases           {}", t.detection.broad_phases);
         println!("body pairs checked     {}", t.detection.body_pairs);
         println!("triangle pairs checked {}", t.detection.triangle_pairs);
         println!(

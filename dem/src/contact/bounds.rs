@@ -44,6 +44,17 @@ impl Bounds {
             & (o.lo.z <= self.hi.z)
     }
 
+    /// The box grown by `pad` on every side (itself for `pad` = 0).
+    pub fn inflated(&self, pad: f64) -> Bounds {
+        if pad == 0.0 {
+            return *self;
+        }
+        Bounds {
+            lo: self.lo - DVec3::splat(pad),
+            hi: self.hi + DVec3::splat(pad),
+        }
+    }
+
     pub fn union(&self, o: &Bounds) -> Bounds {
         Bounds {
             lo: self.lo.min(o.lo),

@@ -109,13 +109,23 @@ impl BroadPhase {
     ///   exactly one rank.
     ///
     /// Sorted, each pair once: a function of the boxes alone.
+    ///
+    /// Moving bodies' boxes are inflated by `pad` more (a neighbour list's
+    /// half skin: the pairs then stay a superset of the overlapping ones
+    /// while no body moves farther than `pad`).
     pub(crate) fn body_pairs(
         &mut self,
         set: &TriangleSet,
         bodies: &[Body],
         phase: Phase,
+        pad: f64,
     ) -> &[(usize, usize)] {
-        self.body_pairs_in_tasks_of(set, bodies, phase, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
+        self.body_pairs_in_tasks_of(set, bodies, phase, pad, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
+    }
+
+    /// What the last call returned.
+    pub(crate) fn last_pairs(&self) -> &[(usize, usize)] {
+        &self.pairs
     }
 
     /// The pairs, with the sweep in tasks of `grain` moving boxes once there
@@ -125,10 +135,11 @@ impl BroadPhase {
         set: &TriangleSet,
         bodies: &[Body],
         phase: Phase,
+        pad: f64,
         grain: usize,
         parallel_from: usize,
     ) -> &[(usize, usize)] {
-        self.collect(set, bodies, phase);
+        self.collect(set, bodies, phase, pad);
         self.sort();
         let (moving, sweep, fixed) = (&self.moving, &self.sweep, &self.fixed);
         // The pairs of moving box n: with the moving boxes after it in the
@@ -173,26 +184,26 @@ impl BroadPhase {
 
     /// Gathers this call's boxes: static ones apart, moving ones into the
     /// last sweep order when they are the same boxes as last time.
-    fn collect(&mut self, set: &TriangleSet, bodies: &[Body], phase: Phase) {
+    fn collect(&mut self, set: &TriangleSet, bodies: &[Body], phase: Phase, pad: f64) {
         let (fresh, fixed) = (&mut self.fresh, &mut self.fixed);
         fresh.clear();
         fixed.clear();
         for (k, g) in set.groups().iter().enumerate() {
-            let list = if bodies[g.body as usize].is_static() {
-                &mut *fixed
+            let (list, pad) = if bodies[g.body as usize].is_static() {
+                (&mut *fixed, 0.0)
             } else {
-                &mut *fresh
+                (&mut *fresh, pad)
             };
             if !g.owned.is_empty() {
                 list.push(Entry {
-                    bounds: g.owned_box,
+                    bounds: g.owned_box.inflated(pad),
                     group: k,
                     part: Part::Owned,
                 });
             }
             if phase == Phase::LocalGhost && !g.ghost.is_empty() {
                 list.push(Entry {
-                    bounds: g.ghost_box,
+                    bounds: g.ghost_box.inflated(pad),
                     group: k,
                     part: Part::Ghost,
                 });
@@ -460,7 +471,7 @@ mod tests {
                             assert!(reference.len() > 50, "a test with pairs to find");
                             let got = pool.install(|| {
                                 broad
-                                    .body_pairs_in_tasks_of(&set, &bodies, phase, grain, 0)
+                                    .body_pairs_in_tasks_of(&set, &bodies, phase, 0.0, grain, 0)
                                     .to_vec()
                             });
                             // Sorted and each once, on every pool size:

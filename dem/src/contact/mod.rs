@@ -12,7 +12,12 @@
 //!    detection task that needs them (`TriangleSet::fill_group`), on the
 //!    core that then reads them.
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
-//!    (`broad_phase.rs`).
+//!    (`broad_phase.rs`). With a skin ([`Detector::with_skin`]), on one node,
+//!    the moving boxes are inflated by half the skin more and the pairs kept
+//!    as a neighbour list, rebuilt only once some body may have moved farther
+//!    than half the skin since; meanwhile each step's tasks fill the listed
+//!    bodies and keep the pairs whose current boxes overlap, so the pairs
+//!    examined are exactly those the broad phase would have returned.
 //! 2. Triangle culling: only triangles whose inflated boxes overlap the other
 //!    body's box, only pairs of those whose inflated boxes overlap, and only
 //!    pairs that neither triangle's plane separates by more than the halo sum
@@ -99,6 +104,9 @@ pub struct DetectionStats {
     /// Contacts whose triangles crossed: the bodies went deeper than their
     /// halos (stiffness too low for the impact speed, or the step too long).
     pub deep_contacts: u64,
+    /// Broad phases run (one per pass without a skin; with one, each
+    /// rebuild of the neighbour list).
+    pub broad_phases: u64,
 }
 
 impl std::ops::AddAssign for DetectionStats {
@@ -108,6 +116,7 @@ impl std::ops::AddAssign for DetectionStats {
         self.fallback_pairs += o.fallback_pairs;
         self.contacts += o.contacts;
         self.deep_contacts += o.deep_contacts;
+        self.broad_phases += o.broad_phases;
     }
 }
 
@@ -121,6 +130,13 @@ pub struct Detector {
     broad: broad_phase::BroadPhase,
     /// Where the last pass spent its time.
     times: DetectionTimes,
+    /// The neighbour list's skin (0: the broad phase runs in every pass).
+    skin: f64,
+    /// The body pairs of the last broad phase, with moving boxes inflated by
+    /// half the skin, while `travel` stays within half the skin.
+    listed: Option<Vec<(usize, usize)>>,
+    /// How far any point of any body may have moved since the list was built.
+    travel: f64,
 }
 
 /// What one parallel task of a detection pass owns: its share of the body
@@ -142,6 +158,8 @@ struct Task {
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
     stats: Vec<PenaltyStats>,
+    /// Body pairs whose boxes overlapped.
+    body_pairs: usize,
     found: Vec<TriangleContact>,
     counts: Counts,
     contacts: Vec<Contact>,
@@ -149,7 +167,18 @@ struct Task {
 }
 
 impl Detector {
-    /// All contacts of the world on one node; `halos[i]` is body i's contact halo.
+    /// A detector keeping a neighbour list with this skin (a length, >= 0;
+    /// 0: no list, the broad phase runs in every pass). See [`Self::detect_moved`].
+    pub fn with_skin(skin: f64) -> Detector {
+        assert!(skin >= 0.0 && skin.is_finite(), "skin {skin}");
+        Detector {
+            skin,
+            ..Detector::default()
+        }
+    }
+
+    /// All contacts of the world on one node; `halos[i]` is body i's contact
+    /// halo. Runs the broad phase (nothing is known of how bodies moved).
     pub fn detect(
         &mut self,
         world: &World,
@@ -157,12 +186,61 @@ impl Detector {
         opts: &Options,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
+        self.detect_moved(world, halos, opts, None, contacts)
+    }
+
+    /// Like [`Self::detect`], told `moved`: a bound on how far any point of any
+    /// body has moved since the previous pass (`None`: unknown). With a skin,
+    /// the broad phase is skipped while these bounds add up to at most half
+    /// the skin since it last ran; results are the same as without a skin.
+    pub fn detect_moved(
+        &mut self,
+        world: &World,
+        halos: &[f64],
+        opts: &Options,
+        moved: Option<f64>,
+        contacts: &mut Vec<Contact>,
+    ) -> DetectionStats {
         let mut set = std::mem::take(&mut self.set);
         let start = Instant::now();
-        set.follow_world_lazily(world, halos);
+        self.travel += moved.unwrap_or(f64::INFINITY);
+        // NaN travel (a body's state gone bad) rebuilds too.
+        let keep_list = self.skin > 0.0
+            && self.travel <= 0.5 * self.skin
+            && self.listed.is_some()
+            && set.advance_lazily(world);
+        if !keep_list {
+            set.follow_world_lazily(world, halos);
+        }
         let triangle_update = seconds_since(start);
-        let (mut stats, n_tasks) =
-            self.run_tasks(world, &set, halos, opts, Phase::LocalLocal, true);
+        let mut listed = self.listed.take().unwrap_or_default();
+        let (mut stats, n_tasks) = if keep_list {
+            self.times = DetectionTimes::default();
+            run_tasks(
+                &mut self.tasks,
+                &mut self.times,
+                world,
+                &set,
+                halos,
+                opts,
+                Phase::LocalLocal,
+                true,
+                &listed,
+            )
+        } else {
+            let pad = 0.5 * self.skin;
+            let (stats, n_tasks) =
+                self.broad_and_narrow(world, &set, halos, opts, Phase::LocalLocal, true, pad);
+            if self.skin > 0.0 {
+                listed.clear();
+                listed.extend_from_slice(self.broad.last_pairs());
+                self.travel = 0.0;
+            }
+            (stats, n_tasks)
+        };
+        if self.skin > 0.0 {
+            self.listed = Some(listed);
+        }
         self.set = set;
         self.times.triangle_update = triangle_update;
         // Each task merged its own body pairs (one phase: a body pair's
@@ -197,20 +275,18 @@ impl Detector {
         phase: Phase,
         found: &mut Vec<TriangleContact>,
     ) -> DetectionStats {
-        let (stats, n_tasks) = self.run_tasks(world, set, halos, opts, phase, false);
+        let (stats, n_tasks) = self.broad_and_narrow(world, set, halos, opts, phase, false, 0.0);
         for task in &self.tasks[..n_tasks] {
             found.extend_from_slice(&task.found);
         }
         stats
     }
 
-    /// Runs the tasks of one phase; returns the pass's counts and how many of
-    /// `self.tasks` ran. With `merge`, each task also merges its triangle
-    /// contacts into body contacts.
-    ///
-    /// Body pairs are shared among tasks as the kernel's schedule says
-    /// ([`Threading::share_lengths`](crate::distance::Threading::share_lengths)).
-    fn run_tasks(
+    /// The broad phase (moving boxes inflated by `pad` more), then the tasks
+    /// of one phase on its pairs; returns the pass's counts and how many of
+    /// `self.tasks` ran.
+    #[allow(clippy::too_many_arguments)]
+    fn broad_and_narrow(
         &mut self,
         world: &World,
         set: &TriangleSet,
@@ -218,6 +294,7 @@ impl Detector {
         opts: &Options,
         phase: Phase,
         merge: bool,
+        pad: f64,
     ) -> (DetectionStats, usize) {
         let start = Instant::now();
         // The broad phase is serial: meanwhile another thread fills triangles
@@ -228,7 +305,7 @@ impl Detector {
         let broad = &mut self.broad;
         let (body_pairs, ()) = rayon::join(
             || {
-                let pairs = broad.body_pairs(set, &world.bodies, phase);
+                let pairs = broad.body_pairs(set, &world.bodies, phase, pad);
                 stop.store(true, Ordering::Relaxed);
                 pairs
             },
@@ -238,42 +315,71 @@ impl Detector {
             broad_phase: seconds_since(start),
             ..DetectionTimes::default()
         };
-        let start = Instant::now();
-        let lengths = opts
-            .threading
-            .share_lengths(body_pairs.len(), rayon::current_num_threads());
-        let n_tasks = lengths.len();
-        if self.tasks.len() < n_tasks {
-            self.tasks.resize_with(n_tasks, Task::default);
-        }
-        let mut rest = body_pairs;
-        let shares = lengths.iter().map(|&len| {
-            let (share, tail) = rest.split_at(len);
-            rest = tail;
-            share
-        });
-        // Tasks taken in order by whichever thread is free (rayon's own
-        // splitting would hand out halves of the list, whatever they cost).
-        shares
-            .zip(self.tasks[..n_tasks].iter_mut())
-            .par_bridge()
-            .for_each(|(share, task)| task.run(world, set, halos, opts, phase, share, merge));
-        self.times.narrow_phase = seconds_since(start);
-        let mut triangle_pairs = 0;
-        let mut counts = Counts::default();
-        for task in &self.tasks[..n_tasks] {
-            triangle_pairs += task.owners.len();
-            counts = counts + task.counts;
-        }
-        let stats = DetectionStats {
-            body_pairs: body_pairs.len() as u64,
-            triangle_pairs: triangle_pairs as u64,
-            fallback_pairs: counts.fallback_pairs as u64,
-            contacts: 0,
-            deep_contacts: 0,
-        };
+        let (mut stats, n_tasks) = run_tasks(
+            &mut self.tasks,
+            &mut self.times,
+            world,
+            set,
+            halos,
+            opts,
+            phase,
+            merge,
+            body_pairs,
+        );
+        stats.broad_phases = 1;
         (stats, n_tasks)
     }
+}
+
+/// Runs the tasks of one phase on `body_pairs` (sorted); returns the pass's
+/// counts and how many of `tasks` ran, and sets the narrow phase's time.
+/// With `merge`, each task also merges its triangle contacts into body
+/// contacts.
+///
+/// Body pairs are shared among tasks as the kernel's schedule says
+/// ([`Threading::share_lengths`](crate::distance::Threading::share_lengths)).
+#[allow(clippy::too_many_arguments)]
+fn run_tasks(
+    tasks: &mut Vec<Task>,
+    times: &mut DetectionTimes,
+    world: &World,
+    set: &TriangleSet,
+    halos: &[f64],
+    opts: &Options,
+    phase: Phase,
+    merge: bool,
+    body_pairs: &[(usize, usize)],
+) -> (DetectionStats, usize) {
+    let start = Instant::now();
+    let lengths = opts
+        .threading
+        .share_lengths(body_pairs.len(), rayon::current_num_threads());
+    let n_tasks = lengths.len();
+    if tasks.len() < n_tasks {
+        tasks.resize_with(n_tasks, Task::default);
+    }
+    let mut rest = body_pairs;
+    let shares = lengths.iter().map(|&len| {
+        let (share, tail) = rest.split_at(len);
+        rest = tail;
+        share
+    });
+    // Tasks taken in order by whichever thread is free (rayon's own
+    // splitting would hand out halves of the list, whatever they cost).
+    shares
+        .zip(tasks[..n_tasks].iter_mut())
+        .par_bridge()
+        .for_each(|(share, task)| task.run(world, set, halos, opts, phase, share, merge));
+    times.narrow_phase = seconds_since(start);
+    let mut stats = DetectionStats::default();
+    let mut counts = Counts::default();
+    for task in &tasks[..n_tasks] {
+        stats.body_pairs += task.body_pairs as u64;
+        stats.triangle_pairs += task.owners.len() as u64;
+        counts = counts + task.counts;
+    }
+    stats.fallback_pairs = counts.fallback_pairs as u64;
+    (stats, n_tasks)
 }
 
 impl Task {
@@ -295,15 +401,22 @@ impl Task {
     ) {
         let groups = set.groups();
         self.owners.clear();
+        self.body_pairs = 0;
         for &(g, h) in body_pairs {
             set.fill_group(g, world, &mut self.vertices);
             set.fill_group(h, world, &mut self.vertices);
             let (ga, gb) = (&groups[g], &groups[h]);
-            let (a_part, a_box) = (ga.owned.clone(), ga.owned_box);
+            let (a_part, a_box) = (ga.owned.clone(), set.owned_box(g));
             let (b_part, b_box) = match phase {
-                Phase::LocalLocal => (gb.owned.clone(), gb.owned_box),
+                Phase::LocalLocal => (gb.owned.clone(), set.owned_box(h)),
                 Phase::LocalGhost => (gb.ghost.clone(), gb.ghost_box),
             };
+            // Pairs from a neighbour list (see `Detector::detect_moved`) may
+            // have drifted apart; straight from the broad phase they overlap.
+            if !a_box.overlaps(&b_box) {
+                continue;
+            }
+            self.body_pairs += 1;
             let reach = halos[ga.body as usize] + halos[gb.body as usize];
             // Every test below passes for a sizeable fraction (30-60% in the
             // hopper), so branches on them would mispredict: each loop writes

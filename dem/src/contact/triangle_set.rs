@@ -76,7 +76,7 @@ pub struct BodyGroup {
 #[derive(Debug, Clone, Default)]
 pub struct TriangleSet {
     keys: Vec<TriangleKey>,
-    triangles: Vec<Slot>,
+    triangles: Vec<Slot<SetTriangle>>,
     owned: usize,
     groups: Vec<BodyGroup>,
     /// Pose and halo each body's triangles were last computed for, when the
@@ -86,33 +86,48 @@ pub struct TriangleSet {
     /// Per group, when the set follows the world lazily: whether its
     /// triangles are current (empty: all are).
     fresh: Freshness,
+    /// Per group, when the set follows the world lazily: the box of its
+    /// triangles as last filled (see [`TriangleSet::owned_box`]).
+    filled_boxes: Vec<Slot<Bounds>>,
+    /// Per group: halo and whether the body moves, as of `follow_world`.
+    halos: Vec<f64>,
+    moving: Vec<bool>,
+    /// Whether [`TriangleSet::advance_lazily`] ran since the last
+    /// `follow_world`: recorded poses then no longer say what was filled.
+    advanced: bool,
 }
 
-/// A triangle of the set, which [`TriangleSet::fill_group`] may write through
-/// a shared reference.
-struct Slot(UnsafeCell<SetTriangle>);
+/// A triangle (or a group's box) of the set, which [`TriangleSet::fill_group`]
+/// may write through a shared reference.
+struct Slot<T>(UnsafeCell<T>);
 
 // SAFETY: concurrent access is ordered by the groups' states (see
 // `TriangleSet::fill_group` and `TriangleSet::triangle`).
-unsafe impl Sync for Slot {}
+unsafe impl<T: Send> Sync for Slot<T> {}
 
-impl Slot {
-    fn new(t: SetTriangle) -> Slot {
+impl<T: Copy> Slot<T> {
+    fn new(t: T) -> Slot<T> {
         Slot(UnsafeCell::new(t))
     }
-}
 
-impl Clone for Slot {
-    fn clone(&self) -> Slot {
-        // SAFETY: a set is cloned outside detection passes, with no filler running.
-        Slot::new(unsafe { *self.0.get() })
+    /// # Safety
+    /// No thread writes the slot meanwhile (see `Sync` above).
+    unsafe fn get(&self) -> T {
+        unsafe { *self.0.get() }
     }
 }
 
-impl std::fmt::Debug for Slot {
+impl<T: Copy> Clone for Slot<T> {
+    fn clone(&self) -> Slot<T> {
+        // SAFETY: a set is cloned outside detection passes, with no filler running.
+        Slot::new(unsafe { self.get() })
+    }
+}
+
+impl<T: Copy + std::fmt::Debug> std::fmt::Debug for Slot<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         // SAFETY: as for `Clone`.
-        unsafe { *self.0.get() }.fmt(f)
+        unsafe { self.get() }.fmt(f)
     }
 }
 
@@ -202,10 +217,10 @@ impl TriangleSet {
         }
         let group = &self.groups[g];
         let body = &world.bodies[group.body as usize];
-        // A group goes STALE only in `follow_world`, which records its pose.
-        let halo = self.poses[g].expect("a stale group has a recorded pose").2;
+        let halo = self.halos[g];
         let mesh = &world.shapes[body.shape];
         world_vertices(body, mesh, vertices);
+        let mut bbox = Bounds::EMPTY;
         for (slot, t) in self.triangles[group.owned.clone()]
             .iter()
             .zip(&mesh.triangles)
@@ -220,8 +235,12 @@ impl TriangleSet {
             // they see CURRENT (stored below with Release; readers load it
             // with Acquire in this function before reading). The slots of
             // different groups are disjoint.
-            unsafe { *slot.0.get() = SetTriangle::new(v, halo) };
+            let triangle = SetTriangle::new(v, halo);
+            unsafe { *slot.0.get() = triangle };
+            bbox = bbox.union(&triangle.bounds);
         }
+        // SAFETY: as for the triangles: the group's own slot, while FILLING.
+        unsafe { *self.filled_boxes[g].0.get() = bbox };
         state.store(CURRENT, Ordering::Release);
     }
 
@@ -238,6 +257,32 @@ impl TriangleSet {
         }
     }
 
+    /// The bodies have moved since the last [`Self::follow_world_lazily`]:
+    /// every moving body's triangles and box are left to
+    /// [`Self::fill_group`], without reading the bodies. For a detector
+    /// whose body pairs come from a list built with a skin (`Detector`); the
+    /// group boxes of [`Self::groups`] stay as they were, so call
+    /// [`Self::owned_box`] after `fill_group` for a current one. Returns
+    /// false (and changes nothing) unless the set already follows `world`'s
+    /// bodies lazily.
+    pub(crate) fn advance_lazily(&mut self, world: &World) -> bool {
+        let follows = self.ghosts().is_empty()
+            && self.groups.len() == world.bodies.len()
+            && self.fresh.0.len() == self.groups.len()
+            && self.filled_boxes.len() == self.groups.len()
+            && self.moving.len() == self.groups.len();
+        if !follows {
+            return false;
+        }
+        for (state, &moving) in self.fresh.0.iter_mut().zip(&self.moving) {
+            if moving {
+                *state.get_mut() = STALE;
+            }
+        }
+        self.advanced = true;
+        true
+    }
+
     fn follow_world(&mut self, world: &World, halos: &[f64], fill: Fill) {
         let bodies = &world.bodies;
         let sizes = || bodies.iter().map(|b| world.shapes[b.shape].triangles.len());
@@ -250,7 +295,8 @@ impl TriangleSet {
                 .enumerate()
                 .all(|(i, (g, n))| g.body as usize == i && g.owned.len() == n)
             && self.poses.len() == bodies.len()
-            && self.fresh.0.len() == bodies.len();
+            && self.fresh.0.len() == bodies.len()
+            && self.filled_boxes.len() == bodies.len();
         if !layout_matches {
             self.keys.clear();
             self.groups.clear();
@@ -279,7 +325,22 @@ impl TriangleSet {
             self.poses.clear();
             self.poses.resize(bodies.len(), None);
             self.fresh = Freshness::all_current(bodies.len());
+            self.filled_boxes = vec![Slot::new(Bounds::EMPTY); bodies.len()];
+            self.advanced = false;
         }
+        self.halos.clear();
+        self.halos
+            .extend(self.groups.iter().map(|g| halos[g.body as usize]));
+        self.moving.clear();
+        self.moving.extend(
+            self.groups
+                .iter()
+                .map(|g| !bodies[g.body as usize].is_static()),
+        );
+        // After `advance_lazily`, a moving body's triangles may have been
+        // filled at a later pose than the one recorded: its pose no longer
+        // tells whether they are current.
+        let poses_tell = !std::mem::take(&mut self.advanced);
         // One mutable slice of triangles per body, updated in parallel.
         let mut slices = Vec::with_capacity(bodies.len());
         let mut rest = &mut self.triangles[..];
@@ -293,38 +354,46 @@ impl TriangleSet {
             .zip(self.groups.par_iter_mut())
             .zip(self.poses.par_iter_mut())
             .zip(self.fresh.0.par_iter_mut())
+            .zip(self.filled_boxes.par_iter_mut())
             .with_min_len(UPDATE_GRAIN)
-            .for_each_init(Vec::new, |vertices, (((tris, group), pose), fresh)| {
-                let i = group.body as usize;
-                let (body, halo) = (&bodies[i], halos[i]);
-                let key = (body.x, body.q, halo);
-                // Unmoved, and filled unless filling is left to the tasks (a
-                // set followed lazily and then updated at once must not keep
-                // the stale triangles of a body no task needed).
-                if *pose == Some(key) && (fill == Fill::OnDemand || *fresh.get_mut() == CURRENT) {
-                    return;
-                }
-                let mesh = &world.shapes[body.shape];
-                world_vertices(body, mesh, vertices);
-                // Static bodies are filled now: once, since they never move.
-                let fill_now = fill == Fill::Now || body.is_static();
-                let mut bbox = Bounds::EMPTY;
-                for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
-                    let v = [
-                        vertices[t[0] as usize],
-                        vertices[t[1] as usize],
-                        vertices[t[2] as usize],
-                    ];
-                    let triangle = SetTriangle::new(v, halo);
-                    if fill_now {
-                        *slot.0.get_mut() = triangle;
+            .for_each_init(
+                Vec::new,
+                |vertices, ((((tris, group), pose), fresh), filled_box)| {
+                    let i = group.body as usize;
+                    let (body, halo) = (&bodies[i], halos[i]);
+                    let key = (body.x, body.q, halo);
+                    // Unmoved, and filled unless filling is left to the tasks (a
+                    // set followed lazily and then updated at once must not keep
+                    // the stale triangles of a body no task needed).
+                    if (poses_tell || body.is_static())
+                        && *pose == Some(key)
+                        && (fill == Fill::OnDemand || *fresh.get_mut() == CURRENT)
+                    {
+                        return;
                     }
-                    bbox = bbox.union(&triangle.bounds);
-                }
-                *fresh.get_mut() = if fill_now { CURRENT } else { STALE };
-                group.owned_box = bbox;
-                *pose = Some(key);
-            });
+                    let mesh = &world.shapes[body.shape];
+                    world_vertices(body, mesh, vertices);
+                    // Static bodies are filled now: once, since they never move.
+                    let fill_now = fill == Fill::Now || body.is_static();
+                    let mut bbox = Bounds::EMPTY;
+                    for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
+                        let v = [
+                            vertices[t[0] as usize],
+                            vertices[t[1] as usize],
+                            vertices[t[2] as usize],
+                        ];
+                        let triangle = SetTriangle::new(v, halo);
+                        if fill_now {
+                            *slot.0.get_mut() = triangle;
+                        }
+                        bbox = bbox.union(&triangle.bounds);
+                    }
+                    *fresh.get_mut() = if fill_now { CURRENT } else { STALE };
+                    group.owned_box = bbox;
+                    *filled_box.0.get_mut() = bbox;
+                    *pose = Some(key);
+                },
+            );
     }
 
     /// A set of explicitly given owned triangles (one rank's share), without
@@ -354,6 +423,9 @@ impl TriangleSet {
         self.owned = owned.len();
         self.poses.clear();
         self.fresh = Freshness::default();
+        self.filled_boxes.clear();
+        self.halos.clear();
+        self.moving.clear();
         self.keys.clear();
         self.triangles.clear();
         for (k, t) in owned.iter().chain(&ghosts) {
@@ -435,6 +507,19 @@ impl TriangleSet {
         // callers of `fill_group`, on the detector's private set) read a
         // group's triangles only after their own `fill_group` call on it.
         unsafe { &*self.triangles[i].0.get() }
+    }
+
+    /// The current box of group `g`'s owned triangles, inflated by the halo.
+    /// During a detection pass on a set that follows the world lazily, only
+    /// after `fill_group` on the group: the group's `owned_box` field is then
+    /// as of the last full update of the set, which the steps of a
+    /// detector's neighbour list do not redo.
+    pub fn owned_box(&self, g: usize) -> Bounds {
+        match self.filled_boxes.get(g) {
+            // SAFETY: as for `triangle`.
+            Some(b) => unsafe { b.get() },
+            None => self.groups[g].owned_box,
+        }
     }
 
     /// One group per body present, in body order.

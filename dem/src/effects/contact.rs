@@ -31,9 +31,10 @@ pub struct ContactEffect {
 }
 
 impl ContactEffect {
-    pub fn new(world: &World, kernel: Options) -> Self {
+    /// `skin`: the detector's neighbour-list skin (0: none).
+    pub fn new(world: &World, kernel: Options, skin: f64) -> Self {
         ContactEffect {
-            detector: Detector::default(),
+            detector: Detector::with_skin(skin),
             kernel,
             halo: world.per_body(|m| m.halo),
             laws: MaterialPairs::new(&world.materials),
@@ -49,9 +50,13 @@ impl Effect for ContactEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        let det = self
-            .detector
-            .detect(world, &self.halo, &self.kernel, &mut ctx.contacts);
+        let det = self.detector.detect_moved(
+            world,
+            &self.halo,
+            &self.kernel,
+            ctx.moved,
+            &mut ctx.contacts,
+        );
         ctx.stats.detection = det;
         ctx.detection_times = self.detector.last_times();
         let laws = &self.laws;

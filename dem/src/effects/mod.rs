@@ -90,6 +90,9 @@ pub struct StepContext {
     pub stats: StepStats,
     /// Where this step's contact detection spent its time.
     pub detection_times: DetectionTimes,
+    /// A bound on how far any point of any body moved since the previous
+    /// force evaluation (`None`: unknown, as before the first step).
+    pub moved: Option<f64>,
 }
 
 /// Counters of one step, summed over a run by the caller.

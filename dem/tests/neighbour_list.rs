@@ -1,0 +1,70 @@
+//! The contact effect's neighbour list (a skin): the broad phase runs only
+//! when some body may have left its padded box, yet every step examines the
+//! same body pairs, finds the same contacts and gives the same motion, to the
+//! bit, as a broad phase in every step.
+use dem::scene::Scene;
+use dem::simulation::Simulation;
+use std::path::Path;
+
+fn hopper() -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/hopper.toml");
+    Scene::load(&path).unwrap()
+}
+
+/// Runs the hopper with the given skin; per step, the detection counts and
+/// every body's position and angular momentum bits.
+fn run(scene: &Scene, skin: f64, steps: usize) -> (Vec<[u64; 4]>, Vec<Vec<u64>>, u64) {
+    let mut scene = scene.clone();
+    scene.effects.contact_skin = skin;
+    let mut sim = Simulation::new(&scene);
+    let (mut counts, mut states) = (Vec::new(), Vec::new());
+    for _ in 0..steps {
+        sim.step();
+        let d = sim.last_stats().detection;
+        counts.push([d.body_pairs, d.triangle_pairs, d.contacts, d.fallback_pairs]);
+        states.push(
+            sim.world
+                .bodies
+                .iter()
+                .flat_map(|b| b.x.to_array().into_iter().chain(b.l.to_array()))
+                .map(f64::to_bits)
+                .collect(),
+        );
+    }
+    (counts, states, sim.totals.detection.broad_phases)
+}
+
+#[test]
+fn a_skin_changes_how_often_the_broad_phase_runs_and_nothing_else() {
+    let scene = hopper();
+    // The particles start at rest; within 3,000 steps (0.15 s) they fall
+    // into the hopper, onto its walls and each other, at up to 1.5 m/s.
+    let steps = 3_000;
+    let (counts, states, broad) = run(&scene, 0.0, steps);
+    assert_eq!(
+        broad, steps as u64,
+        "without a skin: one broad phase per step"
+    );
+    assert!(
+        counts.iter().any(|c| c[2] > 0),
+        "a test with contacts to find"
+    );
+    // A skin small enough to rebuild often, and one that rebuilds rarely.
+    let mut last = steps as u64;
+    for skin in [1e-4, 2e-3] {
+        let (c, s, b) = run(&scene, skin, steps);
+        eprintln!("skin {skin}: {b} broad phases in {steps} steps");
+        assert!(
+            b > 1 && b < last,
+            "skin {skin}: {b} broad phases in {steps} steps, fewer expected"
+        );
+        last = b;
+        for step in 0..steps {
+            assert_eq!(c[step], counts[step], "skin {skin}, step {step}: counts");
+            assert!(
+                s[step] == states[step],
+                "skin {skin}, step {step}: states differ"
+            );
+        }
+    }
+}
