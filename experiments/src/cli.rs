@@ -57,6 +57,11 @@ pub struct ScalingArgs {
     /// Runs per thread count (rounds alternate between thread counts).
     #[arg(long, default_value_t = 5)]
     pub repeat: usize,
+    /// What each time is: the median of the runs, or the minimum (on a
+    /// machine whose speed swings, the least disturbed run). Speed-ups are
+    /// ratios of this statistic.
+    #[arg(long, value_enum, default_value_t = Statistic::Median)]
+    pub statistic: Statistic,
     /// Print one JSON object per thread count instead of a table.
     #[arg(long)]
     pub json: bool,

@@ -1,13 +1,13 @@
 //! `tridem scaling SCENE`: the thread scaling of a DEM run, measured side by
 //! side. Rounds alternate between the thread counts, so that a slow minute of
 //! a noisy machine hits every count alike; the speed-up is the ratio of the
-//! medians. Each run starts from the scene's initial state, and the final
+//! medians (or, with `--statistic min`, of the fastest runs). Each run starts from the scene's initial state, and the final
 //! states are compared: a run's result must not depend on its thread count.
 
 use crate::cli::ScalingArgs;
 use crate::error::{CliError, CliResult};
 use crate::sections::{label, section_rows};
-use crate::stats::median;
+use crate::stats::{median, Statistic};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use dem::timing::SectionTimes;
@@ -70,12 +70,16 @@ pub fn run(args: &ScalingArgs) -> CliResult {
     let identical = results
         .iter()
         .all(|runs| runs.iter().all(|r| &r.positions == reference));
-    let medians: Vec<f64> = results
+    let stat = args.statistic;
+    let seconds = |runs: &[RunResult]| runs.iter().map(|r| r.seconds).collect::<Vec<_>>();
+    let medians: Vec<f64> = results.iter().map(|runs| median(seconds(runs))).collect();
+    let minima: Vec<f64> = results
         .iter()
-        .map(|runs| median(runs.iter().map(|r| r.seconds).collect()))
+        .map(|runs| Statistic::Min.of(seconds(runs)))
         .collect();
-    // Per thread count, per section: the median over the runs.
-    let section_medians: Vec<Vec<f64>> = results
+    let times: Vec<f64> = results.iter().map(|runs| stat.of(seconds(runs))).collect();
+    // Per thread count, per section: the statistic over the runs.
+    let section_times: Vec<Vec<f64>> = results
         .iter()
         .map(|runs| {
             let per_run: Vec<Vec<f64>> = runs
@@ -88,7 +92,7 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 })
                 .collect();
             (0..per_run[0].len())
-                .map(|k| median(per_run.iter().map(|v| v[k]).collect()))
+                .map(|k| stat.of(per_run.iter().map(|v| v[k]).collect()))
                 .collect()
         })
         .collect();
@@ -97,9 +101,9 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         .threads
         .iter()
         .zip(&results)
-        .zip(&medians)
-        .zip(&section_medians)
-        .map(|(((&t, runs), &m), sections)| {
+        .zip(medians.iter().zip(&minima).zip(&times))
+        .zip(&section_times)
+        .map(|(((&t, runs), ((&m, &min), &time)), sections)| {
             let by_section: serde_json::Map<String, serde_json::Value> = section_names
                 .iter()
                 .zip(sections)
@@ -110,11 +114,13 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 "steps": steps,
                 "threads": t,
                 "seconds": runs.iter().map(|r| r.seconds).collect::<Vec<_>>(),
+                "statistic": stat.name(),
                 "median_seconds": m,
-                "seconds_per_particle_step": m / (steps as f64 * particles),
-                "speedup": medians[0] / m,
+                "min_seconds": min,
+                "seconds_per_particle_step": time / (steps as f64 * particles),
+                "speedup": times[0] / time,
                 "identical_results": identical,
-                "median_section_seconds": by_section,
+                "section_seconds": by_section,
             })
         })
         .collect();
@@ -132,19 +138,23 @@ pub fn run(args: &ScalingArgs) -> CliResult {
     );
     println!(
         "{:>7}  {:>10}  {:>14}  {:>8}  runs (s)",
-        "threads", "median (s)", "s/particle-step", "speed-up"
+        "threads",
+        format!("{} (s)", stat.name()),
+        "s/particle-step",
+        "speed-up"
     );
-    for ((&t, runs), &m) in args.threads.iter().zip(&results).zip(&medians) {
+    for ((&t, runs), &m) in args.threads.iter().zip(&results).zip(&times) {
         let all: Vec<String> = runs.iter().map(|r| format!("{:.2}", r.seconds)).collect();
         println!(
             "{t:>7}  {m:>10.3}  {:>14.3e}  {:>7.2}x  {}",
             m / (steps as f64 * particles),
-            medians[0] / m,
+            times[0] / m,
             all.join(" ")
         );
     }
     println!(
-        "median seconds by section, and speed-up over {} thread(s)",
+        "{} seconds by section, and speed-up over {} thread(s)",
+        stat.name(),
         args.threads[0]
     );
     print!("  {:<20}", "section");
@@ -157,11 +167,11 @@ pub fn run(args: &ScalingArgs) -> CliResult {
     println!();
     for (k, r) in section_names.iter().enumerate() {
         print!("  {:<20}", label(r));
-        for m in &section_medians {
+        for m in &section_times {
             print!("  {:>8.3}", m[k]);
         }
-        for m in &section_medians[1..] {
-            let ratio = section_medians[0][k] / m[k];
+        for m in &section_times[1..] {
+            let ratio = section_times[0][k] / m[k];
             if ratio.is_finite() {
                 print!("  {:>7.2}x", ratio);
             } else {

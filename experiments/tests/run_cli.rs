@@ -145,6 +145,39 @@ fn scaling_compares_thread_counts_and_their_results() {
         // The hopper falls back per failed pair: results do not depend on threads.
         assert_eq!(r["identical_results"], true, "{r}");
     }
+    // With --statistic min the speed-up is the ratio of the fastest runs.
+    let (code, out, err) = tridem(&[
+        "scaling",
+        &scene("hopper.toml"),
+        "--steps",
+        "100",
+        "--repeat",
+        "2",
+        "--statistic",
+        "min",
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<serde_json::Value> = out
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let min = |r: &serde_json::Value| r["min_seconds"].as_f64().unwrap();
+    for r in &rows {
+        assert_eq!(r["statistic"], "min");
+        let runs: Vec<f64> = r["seconds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        assert_eq!(min(r), runs.iter().copied().fold(f64::INFINITY, f64::min));
+        assert!(min(r) <= r["median_seconds"].as_f64().unwrap(), "{r}");
+    }
+    assert_eq!(
+        rows[1]["speedup"].as_f64().unwrap(),
+        min(&rows[0]) / min(&rows[1])
+    );
     let (code, _, err) = tridem(&["scaling", &scene("hopper.toml"), "--threads", "0"]);
     assert_eq!(code, 2, "{err}");
     assert!(
