@@ -21,9 +21,13 @@ const KICK_GRAIN: usize = 1024;
 
 /// A running simulation.
 pub struct Simulation {
+    /// The bodies move only by [`Simulation::step`]; after moving any by hand,
+    /// call [`Simulation::forget_motion`], or a neighbour list would miss it.
     pub world: World,
     pub dt: f64,
     rotation: bool,
+    /// Set by `forget_motion`: the next step reports its motion as unknown.
+    motion_unknown: bool,
     effects: Vec<Box<dyn Effect>>,
     /// Per shape: the largest distance of a vertex from the body's origin.
     shape_radius: Vec<f64>,
@@ -65,6 +69,7 @@ impl Simulation {
             world,
             dt: scene.dt,
             rotation: scene.effects.rotation,
+            motion_unknown: false,
             shape_radius,
             effects,
             forces: Forces::default(),
@@ -127,7 +132,7 @@ impl Simulation {
                 travel_bound(before, b, radius[b.shape])
             })
             .reduce(|| 0.0, f64::max);
-        self.ctx.moved = Some(moved);
+        self.ctx.moved = (!std::mem::take(&mut self.motion_unknown)).then_some(moved);
         self.timings.integration += seconds_since(start);
         self.evaluate_forces();
         let start = Instant::now();
@@ -144,6 +149,13 @@ impl Simulation {
         self.world.time += h;
         self.world.step += 1;
         self.totals += self.ctx.stats;
+    }
+
+    /// Bodies were moved other than by [`Simulation::step`]: the next step
+    /// rebuilds whatever relied on bounds of their motion (the contact
+    /// effect's neighbour list).
+    pub fn forget_motion(&mut self) {
+        self.motion_unknown = true;
     }
 
     /// Kinetic plus the potential energy the effects store.
