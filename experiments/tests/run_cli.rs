@@ -114,23 +114,19 @@ fn shipped_scenes_parse() {
 
 #[test]
 fn scaling_compares_thread_counts_and_their_results() {
-    let (code, out, err) = tridem(&[
-        "scaling",
-        &scene("hopper.toml"),
-        "--steps",
-        "300",
-        "--threads",
-        "1,2",
-        "--repeat",
-        "2",
-        "--json",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let rows: Vec<serde_json::Value> = out
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
-    assert_eq!(rows.len(), 2, "{out}");
+    // `tridem scaling` on the hopper with `extra` arguments: its JSON rows.
+    let scaling_rows = |extra: &[&str]| -> Vec<serde_json::Value> {
+        let hopper = scene("hopper.toml");
+        let mut args = vec!["scaling", &hopper, "--repeat", "2", "--json"];
+        args.extend_from_slice(extra);
+        let (code, out, err) = tridem(&args);
+        assert_eq!(code, 0, "{err}");
+        out.lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect()
+    };
+    let rows = scaling_rows(&["--steps", "300", "--threads", "1,2"]);
+    assert_eq!(rows.len(), 2, "{rows:?}");
     assert_eq!(rows[0]["threads"], 1);
     assert_eq!(rows[1]["threads"], 2);
     // The reference's speed-up is 1 by definition; each row lists its runs.
@@ -146,22 +142,7 @@ fn scaling_compares_thread_counts_and_their_results() {
         assert_eq!(r["identical_results"], true, "{r}");
     }
     // With --statistic min the speed-up is the ratio of the fastest runs.
-    let (code, out, err) = tridem(&[
-        "scaling",
-        &scene("hopper.toml"),
-        "--steps",
-        "100",
-        "--repeat",
-        "2",
-        "--statistic",
-        "min",
-        "--json",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let rows: Vec<serde_json::Value> = out
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let rows = scaling_rows(&["--steps", "100", "--statistic", "min"]);
     let min = |r: &serde_json::Value| r["min_seconds"].as_f64().unwrap();
     for r in &rows {
         assert_eq!(r["statistic"], "min");

@@ -214,23 +214,19 @@ impl Detector {
         }
         let triangle_update = seconds_since(start);
         let mut listed = self.listed.take().unwrap_or_default();
+        let pass = Pass {
+            world,
+            set: &set,
+            halos,
+            opts,
+            phase: Phase::LocalLocal,
+            merge: true,
+        };
         let (mut stats, n_tasks) = if keep_list {
             self.times = DetectionTimes::default();
-            run_tasks(
-                &mut self.tasks,
-                &mut self.times,
-                world,
-                &set,
-                halos,
-                opts,
-                Phase::LocalLocal,
-                true,
-                &listed,
-            )
+            run_tasks(&mut self.tasks, &mut self.times, &pass, &listed)
         } else {
-            let pad = 0.5 * self.skin;
-            let (stats, n_tasks) =
-                self.broad_and_narrow(world, &set, halos, opts, Phase::LocalLocal, true, pad);
+            let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.5 * self.skin);
             if self.skin > 0.0 {
                 listed.clear();
                 listed.extend_from_slice(self.broad.last_pairs());
@@ -275,7 +271,15 @@ impl Detector {
         phase: Phase,
         found: &mut Vec<TriangleContact>,
     ) -> DetectionStats {
-        let (stats, n_tasks) = self.broad_and_narrow(world, set, halos, opts, phase, false, 0.0);
+        let pass = Pass {
+            world,
+            set,
+            halos,
+            opts,
+            phase,
+            merge: false,
+        };
+        let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.0);
         for task in &self.tasks[..n_tasks] {
             found.extend_from_slice(&task.found);
         }
@@ -285,17 +289,8 @@ impl Detector {
     /// The broad phase (moving boxes inflated by `pad` more), then the tasks
     /// of one phase on its pairs; returns the pass's counts and how many of
     /// `self.tasks` ran.
-    #[allow(clippy::too_many_arguments)]
-    fn broad_and_narrow(
-        &mut self,
-        world: &World,
-        set: &TriangleSet,
-        halos: &[f64],
-        opts: &Options,
-        phase: Phase,
-        merge: bool,
-        pad: f64,
-    ) -> (DetectionStats, usize) {
+    fn broad_and_narrow(&mut self, pass: &Pass, pad: f64) -> (DetectionStats, usize) {
+        let (world, set, phase) = (pass.world, pass.set, pass.phase);
         let start = Instant::now();
         // The broad phase is serial: meanwhile another thread fills triangles
         // that the tasks would otherwise fill (a no-op for sets that are not
@@ -315,43 +310,38 @@ impl Detector {
             broad_phase: seconds_since(start),
             ..DetectionTimes::default()
         };
-        let (mut stats, n_tasks) = run_tasks(
-            &mut self.tasks,
-            &mut self.times,
-            world,
-            set,
-            halos,
-            opts,
-            phase,
-            merge,
-            body_pairs,
-        );
+        let (mut stats, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, pass, body_pairs);
         stats.broad_phases = 1;
         (stats, n_tasks)
     }
 }
 
+/// What one detection pass works on. With `merge`, each task also merges
+/// its triangle contacts into body contacts.
+#[derive(Clone, Copy)]
+struct Pass<'a> {
+    world: &'a World,
+    set: &'a TriangleSet,
+    halos: &'a [f64],
+    opts: &'a Options,
+    phase: Phase,
+    merge: bool,
+}
+
 /// Runs the tasks of one phase on `body_pairs` (sorted); returns the pass's
 /// counts and how many of `tasks` ran, and sets the narrow phase's time.
-/// With `merge`, each task also merges its triangle contacts into body
-/// contacts.
 ///
 /// Body pairs are shared among tasks as the kernel's schedule says
 /// ([`Threading::share_lengths`](crate::distance::Threading::share_lengths)).
-#[allow(clippy::too_many_arguments)]
 fn run_tasks(
     tasks: &mut Vec<Task>,
     times: &mut DetectionTimes,
-    world: &World,
-    set: &TriangleSet,
-    halos: &[f64],
-    opts: &Options,
-    phase: Phase,
-    merge: bool,
+    pass: &Pass,
     body_pairs: &[(usize, usize)],
 ) -> (DetectionStats, usize) {
     let start = Instant::now();
-    let lengths = opts
+    let lengths = pass
+        .opts
         .threading
         .share_lengths(body_pairs.len(), rayon::current_num_threads());
     let n_tasks = lengths.len();
@@ -369,7 +359,7 @@ fn run_tasks(
     shares
         .zip(tasks[..n_tasks].iter_mut())
         .par_bridge()
-        .for_each(|(share, task)| task.run(world, set, halos, opts, phase, share, merge));
+        .for_each(|(share, task)| task.run(pass, share));
     times.narrow_phase = seconds_since(start);
     let mut stats = DetectionStats::default();
     let mut counts = Counts::default();
@@ -383,22 +373,20 @@ fn run_tasks(
 }
 
 impl Task {
-    /// Culls the triangle pairs of `body_pairs` (group indices of `set`) by
-    /// inflated boxes and face planes, computes their distances and keeps
-    /// those within reach, sorted as [`body_contacts`] wants them; with
+    /// Culls the triangle pairs of `body_pairs` (group indices of the pass's
+    /// set) by inflated boxes and face planes, computes their distances and
+    /// keeps those within reach, sorted as [`body_contacts`] wants them; with
     /// `merge`, merges those into body contacts too (in parallel with the
     /// other tasks rather than after them all).
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        &mut self,
-        world: &World,
-        set: &TriangleSet,
-        halos: &[f64],
-        opts: &Options,
-        phase: Phase,
-        body_pairs: &[(usize, usize)],
-        merge: bool,
-    ) {
+    fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)]) {
+        let Pass {
+            world,
+            set,
+            halos,
+            opts,
+            phase,
+            merge,
+        } = *pass;
         let groups = set.groups();
         self.owners.clear();
         self.body_pairs = 0;
