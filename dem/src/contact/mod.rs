@@ -193,6 +193,8 @@ impl Detector {
     /// body has moved since the previous pass (`None`: unknown). With a skin,
     /// the broad phase is skipped while these bounds add up to at most half
     /// the skin since it last ran; results are the same as without a skin.
+    /// `halos` must not change between passes that keep the list (they are
+    /// read when it is built).
     pub fn detect_moved(
         &mut self,
         world: &World,

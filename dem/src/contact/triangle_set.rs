@@ -230,12 +230,12 @@ impl TriangleSet {
                 vertices[t[1] as usize],
                 vertices[t[2] as usize],
             ];
+            let triangle = SetTriangle::new(v, halo);
             // SAFETY: this thread moved the group from STALE to FILLING, so it
             // is the only one writing its slots, and no one reads them until
             // they see CURRENT (stored below with Release; readers load it
             // with Acquire in this function before reading). The slots of
             // different groups are disjoint.
-            let triangle = SetTriangle::new(v, halo);
             unsafe { *slot.0.get() = triangle };
             bbox = bbox.union(&triangle.bounds);
         }
