@@ -208,11 +208,22 @@ impl TriangleSet {
             return;
         };
         loop {
-            match state.compare_exchange(STALE, FILLING, Ordering::Acquire, Ordering::Acquire) {
-                Ok(_) => break,
-                Err(CURRENT) => return,
+            // Load before trying to claim: most calls find the group current,
+            // and a compare-exchange takes the cache line exclusively even when
+            // it fails, so both threads asking about the same group would
+            // bounce the line between their cores on every body pair.
+            match state.load(Ordering::Acquire) {
+                CURRENT => return,
+                STALE => {
+                    if state
+                        .compare_exchange(STALE, FILLING, Ordering::Acquire, Ordering::Acquire)
+                        .is_ok()
+                    {
+                        break;
+                    }
+                }
                 // Another task is filling it: a microsecond or so.
-                Err(_) => std::hint::spin_loop(),
+                _ => std::hint::spin_loop(),
             }
         }
         let group = &self.groups[g];
