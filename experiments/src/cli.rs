@@ -62,6 +62,13 @@ pub struct ScalingArgs {
     /// ratios of this statistic.
     #[arg(long, value_enum, default_value_t = Statistic::Median)]
     pub statistic: Statistic,
+    /// Kernel calls per thread of the reference workload: the scene's
+    /// distance kernel on a small set of random pairs, run by every thread
+    /// on its own right after each run, so the report shows what speed-up
+    /// the machine delivered to plain parallel work in the same minutes (0:
+    /// no reference).
+    #[arg(long, default_value_t = 200_000)]
+    pub reference_pairs: usize,
     /// Print one JSON object per thread count instead of a table.
     #[arg(long)]
     pub json: bool,

@@ -521,7 +521,8 @@ fn pool_of(threads: usize) -> CliResult<rayon::ThreadPool> {
         .map_err(|e| CliError::runtime(format!("thread pool: {e}")))
 }
 
-fn placeholder() -> Closest {
+/// An answer slot to be overwritten by a kernel.
+pub(crate) fn placeholder() -> Closest {
     Closest {
         distance: 0.0,
         p: Default::default(),

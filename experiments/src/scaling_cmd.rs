@@ -3,11 +3,23 @@
 //! a noisy machine hits every count alike; the speed-up is the ratio of the
 //! medians (or, with `--statistic min`, of the fastest runs). Each run starts from the scene's initial state, and the final
 //! states are compared: a run's result must not depend on its thread count.
+//!
+//! On a shared machine the speed-up two cores deliver swings from minute to
+//! minute (on the development VM, the distance kernel alone on 2 threads
+//! measured 1.61x and 1.97x over one in consecutive runs). So next to each
+//! run, the same pool times a reference workload with no shared data and no
+//! synchronisation: each thread runs the scene's distance kernel on a small
+//! set of random pairs.
+//! Its speed-up is what the machine gave plain parallel work at that time;
+//! the scene's speed-up divided by it is the part the scene's own design is
+//! responsible for.
 
 use crate::cli::ScalingArgs;
 use crate::error::{CliError, CliResult};
+use crate::kernels::placeholder;
 use crate::sections::{label, section_rows};
 use crate::stats::{median, Statistic};
+use dem::distance::{distance_many_serial, random_unit_pairs, PenaltyStats, Triangle};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use dem::timing::SectionTimes;
@@ -51,25 +63,30 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 .map_err(|e| CliError::runtime(e.to_string()))
         })
         .collect::<CliResult<Vec<_>>>()?;
+    let mut workload = Reference::new(args.reference_pairs, &scene);
     let bar = ProgressBar::new((args.repeat * pools.len()) as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed} eta {eta}")
             .expect("template")
             .progress_chars("=> "),
     );
     let mut results: Vec<Vec<RunResult>> = pools.iter().map(|_| Vec::new()).collect();
+    let mut reference_runs: Vec<Vec<f64>> = pools.iter().map(|_| Vec::new()).collect();
     for _ in 0..args.repeat {
-        for (pool, runs) in pools.iter().zip(&mut results) {
+        for ((pool, runs), refs) in pools.iter().zip(&mut results).zip(&mut reference_runs) {
             runs.push(pool.install(|| one_run(&scene, steps)));
+            if let Some(r) = workload.as_mut() {
+                refs.push(pool.install(|| r.seconds_per_pair()));
+            }
             bar.inc(1);
         }
     }
     bar.finish_and_clear();
 
     let particles = scene.world.dynamic_count() as f64;
-    let reference = &results[0][0].positions;
+    let first_positions = &results[0][0].positions;
     let identical = results
         .iter()
-        .all(|runs| runs.iter().all(|r| &r.positions == reference));
+        .all(|runs| runs.iter().all(|r| &r.positions == first_positions));
     let stat = args.statistic;
     let seconds = |runs: &[RunResult]| runs.iter().map(|r| r.seconds).collect::<Vec<_>>();
     let medians: Vec<f64> = results.iter().map(|runs| median(seconds(runs))).collect();
@@ -78,6 +95,11 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         .map(|runs| Statistic::Min.of(seconds(runs)))
         .collect();
     let times: Vec<f64> = results.iter().map(|runs| stat.of(seconds(runs))).collect();
+    // The reference workload's time per kernel call, per thread count, by
+    // the same statistic.
+    let reference_times: Option<Vec<f64>> = workload
+        .is_some()
+        .then(|| reference_runs.iter().map(|r| stat.of(r.clone())).collect());
     // Per thread count, per section: the statistic over the runs.
     let section_times: Vec<Vec<f64>> = results
         .iter()
@@ -103,7 +125,24 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         .zip(&results)
         .zip(medians.iter().zip(&minima).zip(&times))
         .zip(&section_times)
-        .map(|(((&t, runs), ((&m, &min), &time)), sections)| {
+        .enumerate()
+        .map(|(k, (((&t, runs), ((&m, &min), &time)), sections))| {
+            let speedup = times[0] / time;
+            let (reference_seconds, reference_speedup, relative) = match &reference_times {
+                Some(r) => {
+                    let rs = r[0] / r[k];
+                    (
+                        serde_json::json!(r[k]),
+                        serde_json::json!(rs),
+                        serde_json::json!(speedup / rs),
+                    )
+                }
+                None => (
+                    serde_json::Value::Null,
+                    serde_json::Value::Null,
+                    serde_json::Value::Null,
+                ),
+            };
             let by_section: serde_json::Map<String, serde_json::Value> = section_names
                 .iter()
                 .zip(sections)
@@ -118,9 +157,13 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 "median_seconds": m,
                 "min_seconds": min,
                 "seconds_per_particle_step": time / (steps as f64 * particles),
-                "speedup": times[0] / time,
+                "speedup": speedup,
                 "identical_results": identical,
                 "section_seconds": by_section,
+                "reference_pairs_per_thread": workload.as_ref().map(Reference::pairs_per_thread),
+                "reference_seconds_per_pair": reference_seconds,
+                "reference_speedup": reference_speedup,
+                "speedup_relative_to_reference": relative,
             })
         })
         .collect();
@@ -180,11 +223,89 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         }
         println!();
     }
+    if let Some(r) = &reference_times {
+        println!(
+            "reference: each thread runs the scene's distance kernel {} times on {} cached pairs, after each run",
+            workload.as_ref().map_or(0, Reference::pairs_per_thread),
+            REFERENCE_SET
+        );
+        println!(
+            "{:>7}  {:>10}  {:>8}  {:>22}",
+            "threads", "ns/pair", "speed-up", "scene / reference"
+        );
+        for (k, &t) in args.threads.iter().enumerate() {
+            let rs = r[0] / r[k];
+            println!(
+                "{t:>7}  {:>10.2}  {:>7.2}x  {:>22.2}",
+                r[k] * 1e9,
+                rs,
+                (times[0] / times[k]) / rs
+            );
+        }
+    }
     println!(
         "final states {} across thread counts and runs",
         if identical { "bit-identical" } else { "DIFFER" }
     );
     Ok(())
+}
+
+/// The reference workload: every thread of the pool computes the scene's
+/// distance kernel on the same small set of random pairs, over and over,
+/// into buffers of its own. Small, so that it stays in each core's cache at
+/// any thread count (a set split between the cores would fit their caches
+/// better than one core's and make the speed-up superlinear: 2.07-2.15x with
+/// 50,000-1,000,000 pairs shared out on this VM); read-only and not shared
+/// out, so nothing but the cores themselves limits it.
+struct Reference {
+    pairs: Vec<(Triangle, Triangle)>,
+    /// Passes over `pairs` per thread per measurement.
+    passes: usize,
+    opts: dem::distance::Options,
+}
+
+/// Pairs in the reference set: 590 KB, within one core's L2 cache here.
+const REFERENCE_SET: usize = 4096;
+
+/// Timings of the reference per run: the fastest of these, each short enough
+/// that the fastest is one the machine did not interrupt.
+const REFERENCE_REPEATS: usize = 3;
+
+impl Reference {
+    /// About `pairs` kernel calls per thread per measurement (0: none).
+    fn new(pairs: usize, scene: &Scene) -> Option<Reference> {
+        (pairs > 0).then(|| Reference {
+            pairs: random_unit_pairs(REFERENCE_SET, 1),
+            passes: pairs.div_ceil(REFERENCE_SET),
+            opts: scene.kernel,
+        })
+    }
+
+    /// Kernel calls per thread per measurement.
+    fn pairs_per_thread(&self) -> usize {
+        self.passes * self.pairs.len()
+    }
+
+    /// Seconds per kernel call on the current pool: wall time over all the
+    /// threads' calls.
+    fn seconds_per_pair(&self) -> f64 {
+        let threads = rayon::current_num_threads();
+        (0..REFERENCE_REPEATS)
+            .map(|_| {
+                let start = Instant::now();
+                rayon::broadcast(|_| {
+                    let mut out = vec![placeholder(); self.pairs.len()];
+                    let mut stats = vec![PenaltyStats::default(); self.pairs.len()];
+                    for _ in 0..self.passes {
+                        distance_many_serial(&self.pairs, &self.opts, &mut out, &mut stats)
+                            .expect("batch size validated by the scene");
+                    }
+                });
+                start.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min)
+            / (threads * self.pairs_per_thread()) as f64
+    }
 }
 
 /// One run from the initial state, timed, on the current pool (kept busy

@@ -165,6 +165,32 @@ fn scaling_compares_thread_counts_and_their_results() {
         (speedup - expected).abs() <= 1e-12 * expected,
         "{speedup} vs {expected}"
     );
+    // The reference workload: its speed-up is the ratio of its own times, and
+    // the scene's relative speed-up divides the two (default on).
+    let f = |r: &serde_json::Value, key: &str| r[key].as_f64().unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+    for r in &rows {
+        // 200,000 calls asked for, in whole passes over 4,096 pairs.
+        assert_eq!(r["reference_pairs_per_thread"], 49 * 4096, "{r}");
+        let reference =
+            f(&rows[0], "reference_seconds_per_pair") / f(r, "reference_seconds_per_pair");
+        assert!(close(f(r, "reference_speedup"), reference), "{r}");
+        assert!(
+            close(
+                f(r, "speedup_relative_to_reference"),
+                f(r, "speedup") / reference
+            ),
+            "{r}"
+        );
+    }
+    assert_eq!(rows[0]["reference_speedup"], 1.0);
+    let rows = scaling_rows(&["--steps", "20", "--threads", "1", "--reference-pairs", "0"]);
+    assert!(
+        rows[0]["reference_seconds_per_pair"].is_null(),
+        "{:?}",
+        rows[0]
+    );
+    assert!(rows[0]["speedup_relative_to_reference"].is_null());
     let (code, _, err) = tridem(&["scaling", &scene("hopper.toml"), "--threads", "0"]);
     assert_eq!(code, 2, "{err}");
     assert!(
