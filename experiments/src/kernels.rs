@@ -390,12 +390,12 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
         }
     }
     let mut points = Vec::new();
-    let mut csv = String::from("sweep,iterations,penalty,tol,batch,finish_rounds,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L\n");
+    let mut csv = String::from("sweep,iterations,penalty,tol,batch,finish_rounds,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L,time_statistic\n");
     for (&(sweep, prm, batch), row) in settings.iter().zip(rows) {
         let stat = args.statistic;
         let (pen_ns, hyb_ns) = (stat.of(row.pen_ns), stat.of(row.hyb_ns));
         csv.push_str(&format!(
-            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e}\n",
+            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e},{}\n",
             prm.max_iterations,
             prm.penalty,
             prm.tol,
@@ -404,7 +404,8 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
             row.median,
             row.certified,
             row.fallback,
-            row.hyb_max
+            row.hyb_max,
+            stat.name()
         ));
         points.push(plot::Point {
             series: sweep.to_string(),
