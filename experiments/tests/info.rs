@@ -149,5 +149,5 @@ fn slurm_job_templates_parse() {
             n += 1;
         }
     }
-    assert!(n >= 3);
+    assert!(n >= 4);
 }
