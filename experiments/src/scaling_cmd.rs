@@ -253,10 +253,11 @@ pub fn run(args: &ScalingArgs) -> CliResult {
 /// The reference workload: every thread of the pool computes the scene's
 /// distance kernel on the same small set of random pairs, over and over,
 /// into buffers of its own. Small, so that it stays in each core's cache at
-/// any thread count (a set split between the cores would fit their caches
-/// better than one core's and make the speed-up superlinear: 2.07-2.15x with
-/// 50,000-1,000,000 pairs shared out on this VM); read-only and not shared
-/// out, so nothing but the cores themselves limits it.
+/// any thread count; read-only and not shared out, so nothing but the cores
+/// themselves limits it. (A set shared out between the threads measured
+/// superlinear speed-ups on this VM, 2.07-2.15x with 50,000 to 1,000,000
+/// pairs; the likely cause, half a set fitting one core's caches better
+/// than the whole, was not confirmed: the guest has no cache counters.)
 struct Reference {
     pairs: Vec<(Triangle, Triangle)>,
     /// Passes over `pairs` per thread per measurement.
