@@ -8,6 +8,7 @@
 use crate::cli::KernelsArgs;
 use crate::error::{create_output_dir, CliError, CliResult};
 use crate::plot;
+use dem::busy_workers::with_busy_workers;
 use dem::distance::{
     distance_many, distances, pair_scale, penalty::BATCH_SIZES, penalty_many_on, penalty_scalar,
     random_unit_pairs, Closest, Counts, Fallback, Isa, Method, Options, PenaltyParams,
@@ -80,9 +81,10 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             isa.name(),
             threads,
             Box::new(move |out, stats| {
-                Some(pool.install(|| {
+                let (counts, seconds) = timed_on_awake_pool(pool, || {
                     distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
-                }))
+                });
+                (Some(counts), seconds)
             }),
         ));
     }
@@ -100,9 +102,11 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             chosen.name(),
             1,
             Box::new(move |out, stats| {
-                penalty_many_on(pairs, batch, &prm, chosen, out, stats)
-                    .expect("batch size checked by check_args");
-                None
+                let ((), seconds) = timed(|| {
+                    penalty_many_on(pairs, batch, &prm, chosen, out, stats)
+                        .expect("batch size checked by check_args")
+                });
+                (None, seconds)
             }),
         ));
     }
@@ -112,10 +116,12 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         "baseline",
         1,
         Box::new(|_, _| {
-            for (a, b) in &pairs {
-                std::hint::black_box(penalty_scalar(a, b, &prm));
-            }
-            None
+            let ((), seconds) = timed(|| {
+                for (a, b) in &pairs {
+                    std::hint::black_box(penalty_scalar(a, b, &prm));
+                }
+            });
+            (None, seconds)
         }),
     ));
     // Brute force: SIMD batches against the scalar routine, one thread.
@@ -125,8 +131,9 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         isa.name(),
         1,
         Box::new(|out, _| {
-            dem::distance::distance_triangle_triangle_many(&pairs, out);
-            None
+            let ((), seconds) =
+                timed(|| dem::distance::distance_triangle_triangle_many(&pairs, out));
+            (None, seconds)
         }),
     ));
     measures.push(Measure::new(
@@ -135,25 +142,35 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         "baseline",
         1,
         Box::new(|_, _| {
-            for (a, b) in &pairs {
-                std::hint::black_box(dem::distance::distance_triangle_triangle(a, b));
-            }
-            None
+            let ((), seconds) = timed(|| {
+                for (a, b) in &pairs {
+                    std::hint::black_box(dem::distance::distance_triangle_triangle(a, b));
+                }
+            });
+            (None, seconds)
         }),
     ));
-    // Thread scaling of the hybrid, measured in the same rounds.
+    // Thread scaling of the hybrid (both fallbacks), measured in the same rounds.
     if threads > 1 {
-        let o = opts(Method::Hybrid, Fallback::WholeBatch);
-        let (single, pairs) = (&single, &pairs);
-        measures.push(Measure::new(
-            "hybrid",
-            "whole-batch fallback",
-            isa.name(),
-            1,
-            Box::new(move |out, stats| {
-                Some(single.install(|| distance_many(pairs, &o, out, stats).expect("batch")))
-            }),
-        ));
+        for (fallback, variant) in [
+            (Fallback::WholeBatch, "whole-batch fallback"),
+            (Fallback::FailedPairs, "failed-pairs fallback"),
+        ] {
+            let o = opts(Method::Hybrid, fallback);
+            let (single, pairs) = (&single, &pairs);
+            measures.push(Measure::new(
+                "hybrid",
+                variant,
+                isa.name(),
+                1,
+                Box::new(move |out, stats| {
+                    let (counts, seconds) = timed_on_awake_pool(single, || {
+                        distance_many(pairs, &o, out, stats).expect("batch")
+                    });
+                    (Some(counts), seconds)
+                }),
+            ));
+        }
     }
 
     // Output buffers allocated once: the rows time the kernels, not page faults.
@@ -167,9 +184,8 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     // Round 0 is the warm-up.
     for round in 0..=rounds {
         for m in &mut measures {
-            let start = Instant::now();
-            let counts = (m.run)(&mut out, &mut stats);
-            let ns = start.elapsed().as_secs_f64() * 1e9 / pairs.len().max(1) as f64;
+            let (counts, seconds) = (m.run)(&mut out, &mut stats);
+            let ns = seconds * 1e9 / pairs.len().max(1) as f64;
             if round > 0 {
                 m.times.push(ns);
             }
@@ -274,13 +290,18 @@ fn print_table(rows: &[Row], pairs: usize, seed: u64, statistic: &str) {
             scalar / simd
         );
     }
-    let multi = rows.iter().find(|r| r.method == "hybrid" && r.threads > 1);
-    if let (Some(m), Some(one)) = (multi, find("hybrid", "whole-batch fallback", Some(1))) {
-        println!(
-            "hybrid, {} threads over 1 thread: {:.2}x",
-            m.threads,
-            one / m.ns_per_pair
-        );
+    for multi in rows
+        .iter()
+        .filter(|r| r.method == "hybrid" && r.threads > 1)
+    {
+        if let Some(one) = find("hybrid", &multi.variant, Some(1)) {
+            println!(
+                "hybrid ({}), {} threads over 1 thread: {:.2}x",
+                multi.variant,
+                multi.threads,
+                one / multi.ns_per_pair
+            );
+        }
     }
 }
 
@@ -382,9 +403,10 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
                 (Method::Hybrid, &mut row.hyb_ns),
             ] {
                 let o = options(method, prm, batch);
-                let start = Instant::now();
-                pool.install(|| std::hint::black_box(distances(&pairs, &o).expect("batch")));
-                times.push(start.elapsed().as_secs_f64() * 1e9 / n);
+                let (_, seconds) = timed_on_awake_pool(&pool, || {
+                    std::hint::black_box(distances(&pairs, &o).expect("batch"))
+                });
+                times.push(seconds * 1e9 / n);
             }
             bar.inc(1);
         }
@@ -462,7 +484,46 @@ fn rel_errors(pairs: &[(Triangle, Triangle)], got: &[Closest], exact: &[Closest]
 
 /// Runs once over all pairs, writing into the shared buffers; returns the
 /// hybrid's counts where there are any.
-type RunOnce<'a> = Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> Option<Counts> + 'a>;
+/// Runs a row once: the kernel's counts (when it reports them) and the seconds it took.
+type RunOnce<'a> =
+    Box<dyn FnMut(&mut [Closest], &mut [PenaltyStats]) -> (Option<Counts>, f64) + 'a>;
+
+/// `f`'s result and the seconds it took, on the calling thread.
+fn timed<R>(f: impl FnOnce() -> R) -> (R, f64) {
+    let start = Instant::now();
+    let r = f();
+    (r, start.elapsed().as_secs_f64())
+}
+
+/// `f`'s result and the seconds it took on `pool`, timed from the moment every
+/// worker of the pool is awake, and kept awake (polling for work, as in a DEM
+/// run: `with_busy_workers`) until `f` returns.
+///
+/// Rows run one after the other, so a pool's workers sleep while the other
+/// rows run. On the 2-core VMs of docs/distance.md, waking a sleeping worker
+/// took 0.25-0.6 ms, and sometimes the woken thread was run on the busy core
+/// until the first had finished: 10-20% of a 200,000-pair run at two threads,
+/// charged to the kernel. The clock starts once a broadcast has reached every
+/// worker and, on top of that, the other workers have polled for
+/// `WARM_UP` (an idle core's first milliseconds ran about 10% slower).
+fn timed_on_awake_pool<R: Send>(
+    pool: &rayon::ThreadPool,
+    f: impl FnOnce() -> R + Send,
+) -> (R, f64) {
+    pool.install(|| {
+        with_busy_workers(|| {
+            rayon::broadcast(|_| ());
+            let warm = Instant::now();
+            while warm.elapsed() < WARM_UP {
+                std::hint::spin_loop();
+            }
+            timed(f)
+        })
+    })
+}
+
+/// How long the workers of a pool poll before a timed run starts.
+const WARM_UP: std::time::Duration = std::time::Duration::from_millis(2);
 
 /// One row of the benchmark: what to run and what it measured.
 struct Measure<'a> {

@@ -160,6 +160,18 @@ fn kernels_json_has_the_documented_fields() {
     let hybrid = rows.iter().find(|r| r["method"] == "hybrid").unwrap();
     let rate = hybrid["fallback_rate"].as_f64().unwrap();
     assert!((0.0..=1.0).contains(&rate));
+    // The thread-scaling rows: each hybrid variant also on one thread, where
+    // it certifies exactly the same pairs (answers do not depend on threads).
+    for variant in ["whole-batch fallback", "failed-pairs fallback"] {
+        let at = |t: u64| {
+            rows.iter()
+                .find(|r| r["method"] == "hybrid" && r["variant"] == variant && r["threads"] == t)
+                .unwrap_or_else(|| panic!("{variant} on {t} thread(s) missing"))
+        };
+        let rate = at(2)["certified_rate"].as_f64().unwrap();
+        assert!(rate > 0.5 && rate <= 1.0, "{rate}");
+        assert_eq!(at(1)["certified_rate"], at(2)["certified_rate"]);
+    }
 }
 
 #[test]
