@@ -3,7 +3,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use dem::distance::{
     distance_many, distance_triangle_triangle, penalty_scalar, random_unit_pairs, Closest, Method,
-    Options, PenaltyParams, PenaltyStats, Solver,
+    Options, PenaltyParams, PenaltyStats,
 };
 use parry3d_f64::math::{Pose, Vector};
 use parry3d_f64::shape::Triangle as ParryTriangle;
@@ -27,7 +27,7 @@ fn kernels(c: &mut Criterion) {
         // Answers go to buffers allocated once, as `tridem kernels` does: a
         // fresh 640 kB answer vector per iteration is a fresh mapping, and
         // its page faults cost about a tenth of the kernel's time.
-        let mut out = vec![placeholder(); PAIRS];
+        let mut out = vec![Closest::UNSET; PAIRS];
         let mut stats = vec![PenaltyStats::default(); PAIRS];
         g.bench_function(BenchmarkId::new(method.name(), "batch8"), |b| {
             b.iter(|| {
@@ -71,16 +71,6 @@ fn kernels(c: &mut Criterion) {
         })
     });
     g.finish();
-}
-
-/// An answer slot for the kernels to overwrite.
-fn placeholder() -> Closest {
-    Closest {
-        distance: f64::NAN,
-        p: glam::DVec3::ZERO,
-        q: glam::DVec3::ZERO,
-        solver: Solver::Brute,
-    }
 }
 
 criterion_group!(benches, kernels);

@@ -174,7 +174,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     }
 
     // Output buffers allocated once: the rows time the kernels, not page faults.
-    let mut out = vec![placeholder(); pairs.len()];
+    let mut out = vec![Closest::UNSET; pairs.len()];
     let mut stats = vec![PenaltyStats::default(); pairs.len()];
     let rounds = args.repeat.max(1);
     let bar = ProgressBar::new((measures.len() * (rounds + 1)) as u64);
@@ -581,14 +581,4 @@ fn pool_of(threads: usize) -> CliResult<rayon::ThreadPool> {
         .num_threads(threads)
         .build()
         .map_err(|e| CliError::runtime(format!("thread pool: {e}")))
-}
-
-/// An answer slot to be overwritten by a kernel.
-pub(crate) fn placeholder() -> Closest {
-    Closest {
-        distance: 0.0,
-        p: Default::default(),
-        q: Default::default(),
-        solver: dem::distance::Solver::Brute,
-    }
 }

@@ -16,10 +16,9 @@
 
 use crate::cli::ScalingArgs;
 use crate::error::{CliError, CliResult};
-use crate::kernels::placeholder;
 use crate::sections::{label, section_rows};
 use crate::stats::{median, Statistic};
-use dem::distance::{distance_many_serial, random_unit_pairs, PenaltyStats, Triangle};
+use dem::distance::{distance_many_serial, random_unit_pairs, Closest, PenaltyStats, Triangle};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use dem::timing::SectionTimes;
@@ -295,7 +294,7 @@ impl Reference {
             .map(|_| {
                 let start = Instant::now();
                 rayon::broadcast(|_| {
-                    let mut out = vec![placeholder(); self.pairs.len()];
+                    let mut out = vec![Closest::UNSET; self.pairs.len()];
                     let mut stats = vec![PenaltyStats::default(); self.pairs.len()];
                     for _ in 0..self.passes {
                         distance_many_serial(&self.pairs, &self.opts, &mut out, &mut stats)

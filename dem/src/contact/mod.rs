@@ -48,7 +48,7 @@ pub use bounds::Bounds;
 pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
 use crate::distance::{
-    distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Solver, Triangle,
+    distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Triangle,
 };
 use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
@@ -443,7 +443,7 @@ impl Task {
             }
         }
         let n = self.owners.len();
-        self.out.resize(n, placeholder());
+        self.out.resize(n, Closest::UNSET);
         self.stats.resize(n, PenaltyStats::default());
         let pairs = SetPairs {
             set,
@@ -594,13 +594,4 @@ fn merge_into(existing: &mut [Contact], c: Contact, tol: f64) -> Option<()> {
         *m = c;
     }
     Some(())
-}
-
-fn placeholder() -> Closest {
-    Closest {
-        distance: f64::INFINITY,
-        p: DVec3::ZERO,
-        q: DVec3::ZERO,
-        solver: Solver::Brute,
-    }
 }

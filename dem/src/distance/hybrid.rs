@@ -17,7 +17,7 @@ use super::distance_triangle_triangle_batch::{
 use super::isa::Isa;
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty::{
-    dummy_closest, penalty_batch_on, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
+    penalty_batch_on, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
 };
 use super::{Closest, Triangle};
 use rayon::prelude::*;
@@ -397,7 +397,7 @@ pub fn distances(
     pairs: &[(Triangle, Triangle)],
     opts: &Options,
 ) -> Result<(Vec<Closest>, Vec<PenaltyStats>, Counts), UnsupportedBatch> {
-    let mut out = vec![dummy_closest(); pairs.len()];
+    let mut out = vec![Closest::UNSET; pairs.len()];
     let mut stats = vec![PenaltyStats::default(); pairs.len()];
     let counts = distance_many(pairs, opts, &mut out, &mut stats)?;
     Ok((out, stats, counts))

@@ -80,6 +80,17 @@ pub struct Closest {
     pub solver: Solver,
 }
 
+impl Closest {
+    /// An answer slot for a kernel to overwrite; NaN, so a slot left unwritten
+    /// cannot pass for a distance.
+    pub const UNSET: Closest = Closest {
+        distance: f64::NAN,
+        p: DVec3::ZERO,
+        q: DVec3::ZERO,
+        solver: Solver::Brute,
+    };
+}
+
 /// Length of the diagonal of the bounding box of both triangles: the scale that
 /// every tolerance in this module is relative to.
 pub fn pair_scale(a: &Triangle, b: &Triangle) -> f64 {

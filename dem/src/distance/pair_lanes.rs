@@ -263,7 +263,7 @@ mod tests {
             p: [&rows[1], &rows[2], &rows[3]],
             q: [&rows[4], &rows[5], &rows[6]],
         };
-        let blank = crate::distance::penalty::dummy_closest();
+        let blank = Closest::UNSET;
         let mut out = vec![blank; n];
         store_answers(&ans, Solver::Brute, &mut out);
         for (l, o) in out.iter().enumerate() {

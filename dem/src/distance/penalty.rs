@@ -29,7 +29,6 @@ use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty_finish::{finish_lanes, Finished};
 use super::solve_spd4::{solve_spd4_by_blocks, Sym4, SYM4_INDEX};
 use super::{Closest, Solver, Triangle};
-use glam::DVec3;
 
 /// Parameters of the penalty Newton solver. All are dimensionless.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -327,19 +326,10 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
 /// Penalty on one pair with scalar code: the reference the SIMD speed-up is
 /// measured against (same algorithm, one pair at a time, baseline instructions).
 pub fn penalty_scalar(a: &Triangle, b: &Triangle, prm: &PenaltyParams) -> (Closest, PenaltyStats) {
-    let mut out = [dummy_closest()];
+    let mut out = [Closest::UNSET];
     let mut stats = [PenaltyStats::default()];
     penalty_batch_on::<1, _>(&[(*a, *b)][..], prm, Isa::Baseline, &mut out, &mut stats);
     (out[0], stats[0])
-}
-
-pub(crate) fn dummy_closest() -> Closest {
-    Closest {
-        distance: f64::NAN,
-        p: DVec3::ZERO,
-        q: DVec3::ZERO,
-        solver: Solver::Penalty,
-    }
 }
 
 /// A batch size the kernel is not compiled for.
