@@ -10,7 +10,10 @@
 //! 0. On one node, the set follows the world: each body's box is computed from
 //!    its pose, and the triangles of a moving body are filled in by the first
 //!    detection task that needs them (`TriangleSet::fill_group`), on the
-//!    core that then reads them.
+//!    core that then reads them. Each pool thread has a copy of the set of
+//!    its own (`TriangleSet::mirror_lazily`), so that a triangle filled on
+//!    one core is never read on the other: a body needed on both is filled
+//!    twice, which costs less than moving its cache lines.
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
 //!    (`broad_phase.rs`). With a skin ([`Detector::with_skin`]), on one node,
 //!    the moving boxes are inflated by half the skin more and the pairs kept
@@ -123,8 +126,9 @@ impl std::ops::AddAssign for DetectionStats {
 /// Contact detector with its reusable buffers.
 #[derive(Debug, Default)]
 pub struct Detector {
-    /// The one-node set, following the world.
-    set: TriangleSet,
+    /// The one-node set, following the world, and one replica of it per
+    /// further thread of the pool: see [`Detector::detect_moved`].
+    sets: Vec<TriangleSet>,
     /// One per task of a pass, kept between passes for their capacity.
     tasks: Vec<Task>,
     broad: broad_phase::BroadPhase,
@@ -203,8 +207,12 @@ impl Detector {
         moved: Option<f64>,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
-        let mut set = std::mem::take(&mut self.set);
+        let mut sets = std::mem::take(&mut self.sets);
+        if sets.is_empty() {
+            sets.push(TriangleSet::default());
+        }
         let start = Instant::now();
+        let set = &mut sets[0];
         self.travel += moved.unwrap_or(f64::INFINITY);
         // NaN travel (a body's state gone bad) rebuilds too.
         let keep_list = self.skin > 0.0
@@ -214,11 +222,20 @@ impl Detector {
         if !keep_list {
             set.follow_world_lazily(world, halos);
         }
+        // Each thread fills and reads the moving bodies' triangles in a set of
+        // its own: in one shared set, the triangles one core filled were
+        // read by the other, and moving them between the cores cost more
+        // than filling a body twice (docs/dem.md, sessions 15 and 16).
+        sets.resize_with(rayon::current_num_threads().max(1), TriangleSet::default);
+        let (primary, replicas) = sets.split_at_mut(1);
+        for r in replicas {
+            r.mirror_lazily(&primary[0]);
+        }
         let triangle_update = seconds_since(start);
         let mut listed = self.listed.take().unwrap_or_default();
         let pass = Pass {
             world,
-            set: &set,
+            sets: &sets,
             halos,
             opts,
             phase: Phase::LocalLocal,
@@ -239,7 +256,7 @@ impl Detector {
         if self.skin > 0.0 {
             self.listed = Some(listed);
         }
-        self.set = set;
+        self.sets = sets;
         self.times.triangle_update = triangle_update;
         // Each task merged its own body pairs (one phase: a body pair's
         // triangle contacts all come from one task), and the tasks hold
@@ -275,7 +292,7 @@ impl Detector {
     ) -> DetectionStats {
         let pass = Pass {
             world,
-            set,
+            sets: std::slice::from_ref(set),
             halos,
             opts,
             phase,
@@ -292,7 +309,7 @@ impl Detector {
     /// of one phase on its pairs; returns the pass's counts and how many of
     /// `self.tasks` ran.
     fn broad_and_narrow(&mut self, pass: &Pass, pad: f64) -> (DetectionStats, usize) {
-        let (world, set, phase) = (pass.world, pass.set, pass.phase);
+        let (world, set, phase) = (pass.world, &pass.sets[0], pass.phase);
         let start = Instant::now();
         // The broad phase is serial: meanwhile another thread fills triangles
         // that the tasks would otherwise fill (a no-op for sets that are not
@@ -306,7 +323,7 @@ impl Detector {
                 stop.store(true, Ordering::Relaxed);
                 pairs
             },
-            || set.prefill_until(world, &stop),
+            || pass.set_of_this_thread().prefill_until(world, &stop),
         );
         self.times = DetectionTimes {
             broad_phase: seconds_since(start),
@@ -323,7 +340,9 @@ impl Detector {
 #[derive(Clone, Copy)]
 struct Pass<'a> {
     world: &'a World,
-    set: &'a TriangleSet,
+    /// The same triangles: one set, or one per thread of the pool (the
+    /// thread of index k uses set k, filling it on demand).
+    sets: &'a [TriangleSet],
     halos: &'a [f64],
     opts: &'a Options,
     phase: Phase,
@@ -374,6 +393,16 @@ fn run_tasks(
     (stats, n_tasks)
 }
 
+impl Pass<'_> {
+    /// The set the calling thread reads and fills. Any set would give the
+    /// same answers (they hold the same triangles); its own keeps them in
+    /// its core's cache.
+    fn set_of_this_thread(&self) -> &TriangleSet {
+        let k = rayon::current_thread_index().unwrap_or(0);
+        &self.sets[k % self.sets.len()]
+    }
+}
+
 impl Task {
     /// Culls the triangle pairs of `body_pairs` (group indices of the pass's
     /// set) by inflated boxes and face planes, computes their distances and
@@ -381,13 +410,14 @@ impl Task {
     /// `merge`, merges those into body contacts too (in parallel with the
     /// other tasks rather than after them all).
     fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)]) {
+        let set = pass.set_of_this_thread();
         let Pass {
             world,
-            set,
             halos,
             opts,
             phase,
             merge,
+            ..
         } = *pass;
         let groups = set.groups();
         self.owners.clear();

@@ -95,6 +95,9 @@ pub struct TriangleSet {
     /// Whether [`TriangleSet::advance_lazily`] ran since the last
     /// `follow_world`: recorded poses then no longer say what was filled.
     advanced: bool,
+    /// Counts the runs of `follow_world`; a replica's, the primary's count
+    /// it last mirrored (see [`TriangleSet::mirror_lazily`]).
+    generation: u64,
 }
 
 /// A triangle (or a group's box) of the set, which [`TriangleSet::fill_group`]
@@ -255,6 +258,61 @@ impl TriangleSet {
         state.store(CURRENT, Ordering::Release);
     }
 
+    /// Makes this set a replica of `primary`, a set that follows the world
+    /// lazily, for the pass about to run: the same layout, groups and halos,
+    /// the moving bodies' triangles left to [`Self::fill_group`] (on this
+    /// replica, by the thread that uses it), the static bodies' copied when
+    /// they changed. Call after `primary`'s own update and before any fill.
+    pub(crate) fn mirror_lazily(&mut self, primary: &TriangleSet) {
+        // Groups name their body and triangle ranges: equal groups, equal keys.
+        let same_layout = self.keys.len() == primary.keys.len()
+            && self.groups.len() == primary.groups.len()
+            && self
+                .groups
+                .iter()
+                .zip(&primary.groups)
+                .all(|(a, b)| (a.body, &a.owned, &a.ghost) == (b.body, &b.owned, &b.ghost))
+            && self.fresh.0.len() == primary.fresh.0.len()
+            && self.poses.len() == primary.poses.len();
+        if !same_layout || primary.fresh.0.is_empty() {
+            self.clone_from(primary);
+            return;
+        }
+        if self.generation == primary.generation {
+            // Only the moving bodies moved since: the groups, poses and halos
+            // are as mirrored, and rewriting them would take their cache
+            // lines from the core that reads them.
+            for (state, &moving) in self.fresh.0.iter_mut().zip(&self.moving) {
+                if moving {
+                    *state.get_mut() = STALE;
+                }
+            }
+            return;
+        }
+        for g in 0..self.groups.len() {
+            self.groups[g].owned_box = primary.groups[g].owned_box;
+            let state = if primary.moving[g] {
+                STALE
+            } else {
+                if self.poses[g] != primary.poses[g] || self.halos[g] != primary.halos[g] {
+                    // A static body placed anew: copy its triangles, filled
+                    // by `primary`'s update (no filler runs between passes).
+                    for i in primary.groups[g].owned.clone() {
+                        *self.triangles[i].0.get_mut() = *primary.triangle(i);
+                    }
+                    // SAFETY: as above, no filler runs.
+                    *self.filled_boxes[g].0.get_mut() = unsafe { primary.filled_boxes[g].get() };
+                }
+                CURRENT
+            };
+            *self.fresh.0[g].get_mut() = state;
+        }
+        self.poses.clone_from(&primary.poses);
+        self.halos.clone_from(&primary.halos);
+        self.moving.clone_from(&primary.moving);
+        self.generation = primary.generation;
+    }
+
     /// Fills stale groups, last to first, until `stop` is set. For a thread
     /// that would otherwise wait (see `Detector::run_tasks`); the detection
     /// tasks fill whatever is left.
@@ -295,6 +353,7 @@ impl TriangleSet {
     }
 
     fn follow_world(&mut self, world: &World, halos: &[f64], fill: Fill) {
+        self.generation += 1;
         let bodies = &world.bodies;
         let sizes = || bodies.iter().map(|b| world.shapes[b.shape].triangles.len());
         let layout_matches = self.ghosts().is_empty()
