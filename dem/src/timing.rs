@@ -16,6 +16,10 @@ pub struct DetectionTimes {
     /// Triangle culling, the distance kernel and merging per body pair, in
     /// parallel tasks.
     pub narrow_phase: f64,
+    /// Thread-seconds the narrow phase's tasks ran, summed over the tasks
+    /// (not part of [`Self::total`]): against `narrow_phase` times the
+    /// threads, what the threads spent waiting (a late start, the last task).
+    pub narrow_phase_busy: f64,
 }
 
 impl DetectionTimes {
@@ -29,6 +33,7 @@ impl AddAssign for DetectionTimes {
         self.triangle_update += o.triangle_update;
         self.broad_phase += o.broad_phase;
         self.narrow_phase += o.narrow_phase;
+        self.narrow_phase_busy += o.narrow_phase_busy;
     }
 }
 

@@ -118,14 +118,31 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         })
         .collect();
     let section_names = section_rows(&results[0][0].sections);
+    // Per thread count: the narrow phase's tasks' thread-seconds, and the
+    // threads' time in the phase outside tasks (a late start, the wait for
+    // the last task), each by the statistic over the runs.
+    let narrow_busy_idle: Vec<(f64, f64)> = args
+        .threads
+        .iter()
+        .zip(&results)
+        .map(|(&t, runs)| {
+            let d = |r: &RunResult| r.sections.detection;
+            let busy = stat.of(runs.iter().map(|r| d(r).narrow_phase_busy).collect());
+            let idle = stat.of(runs
+                .iter()
+                .map(|r| t as f64 * d(r).narrow_phase - d(r).narrow_phase_busy)
+                .collect());
+            (busy, idle)
+        })
+        .collect();
     let rows: Vec<serde_json::Value> = args
         .threads
         .iter()
         .zip(&results)
         .zip(medians.iter().zip(&minima).zip(&times))
-        .zip(&section_times)
+        .zip(section_times.iter().zip(&narrow_busy_idle))
         .enumerate()
-        .map(|(k, (((&t, runs), ((&m, &min), &time)), sections))| {
+        .map(|(k, (((&t, runs), ((&m, &min), &time)), (sections, &(busy, idle))))| {
             let speedup = times[0] / time;
             let (reference_seconds, reference_speedup, relative) = match &reference_times {
                 Some(r) => {
@@ -159,6 +176,8 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 "speedup": speedup,
                 "identical_results": identical,
                 "section_seconds": by_section,
+                "narrow_phase_busy_thread_seconds": busy,
+                "narrow_phase_idle_thread_seconds": idle,
                 "reference_pairs_per_thread": workload.as_ref().map(Reference::pairs_per_thread),
                 "reference_seconds_per_pair": reference_seconds,
                 "reference_speedup": reference_speedup,
@@ -221,6 +240,19 @@ pub fn run(args: &ScalingArgs) -> CliResult {
             }
         }
         println!();
+    }
+    println!(
+        "narrow phase: thread-seconds in tasks and outside them (late start, wait for the last task)"
+    );
+    println!(
+        "{:>7}  {:>10}  {:>10}  {:>10}",
+        "threads", "busy", "idle", "idle %"
+    );
+    for (&t, &(busy, idle)) in args.threads.iter().zip(&narrow_busy_idle) {
+        println!(
+            "{t:>7}  {busy:>10.3}  {idle:>10.3}  {:>9.1}%",
+            100.0 * idle / (busy + idle)
+        );
     }
     if let Some(r) = &reference_times {
         println!(

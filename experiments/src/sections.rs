@@ -63,6 +63,7 @@ mod tests {
                 triangle_update: 1.0,
                 broad_phase: 0.5,
                 narrow_phase: 6.0,
+                narrow_phase_busy: 11.0,
             },
         };
         let rows = section_rows(&t);

@@ -140,6 +140,13 @@ fn scaling_compares_thread_counts_and_their_results() {
         assert!(m > 0.0 && s > 0.0, "{r}");
         // The hopper falls back per failed pair: results do not depend on threads.
         assert_eq!(r["identical_results"], true, "{r}");
+        // Tasks run within the phase, one at a time per thread: the
+        // threads' time in it splits into busy and idle, neither negative.
+        let (busy, idle) = (
+            r["narrow_phase_busy_thread_seconds"].as_f64().unwrap(),
+            r["narrow_phase_idle_thread_seconds"].as_f64().unwrap(),
+        );
+        assert!(busy > 0.0 && idle >= 0.0, "{r}");
     }
     // With --statistic min the speed-up is the ratio of the fastest runs.
     let rows = scaling_rows(&["--steps", "100", "--statistic", "min"]);

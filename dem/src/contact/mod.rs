@@ -168,6 +168,8 @@ struct Task {
     counts: Counts,
     contacts: Vec<Contact>,
     deep: u64,
+    /// Seconds `run` took in the last pass.
+    busy: f64,
 }
 
 impl Detector {
@@ -380,11 +382,17 @@ fn run_tasks(
     shares
         .zip(tasks[..n_tasks].iter_mut())
         .par_bridge()
-        .for_each(|(share, task)| task.run(pass, share));
+        .for_each(|(share, task)| {
+            let start = Instant::now();
+            task.run(pass, share);
+            task.busy = seconds_since(start);
+        });
     times.narrow_phase = seconds_since(start);
+    times.narrow_phase_busy = 0.0;
     let mut stats = DetectionStats::default();
     let mut counts = Counts::default();
     for task in &tasks[..n_tasks] {
+        times.narrow_phase_busy += task.busy;
         stats.body_pairs += task.body_pairs as u64;
         stats.triangle_pairs += task.owners.len() as u64;
         counts = counts + task.counts;
