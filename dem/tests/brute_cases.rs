@@ -31,20 +31,27 @@ fn brute_matches_references_on_every_case() {
 }
 
 /// The SIMD-batched brute force gives the scalar answers bit for bit, on
-/// every hard case and on random pairs, whatever the batch composition.
+/// every hard case and on random pairs, whatever the batch composition, on
+/// every instruction set this CPU has.
 #[test]
 fn batched_brute_force_equals_the_scalar_one() {
     let mut pairs: Vec<_> = common::load_cases().iter().map(|c| (c.a, c.b)).collect();
     pairs.extend(dem::distance::random_unit_pairs(5000, 9));
-    for offset in [0, 3] {
-        let slice = &pairs[offset..];
-        let mut out = vec![distance_triangle_triangle(&slice[0].0, &slice[0].1); slice.len()];
-        dem::distance::distance_triangle_triangle_many(slice, &mut out);
-        for ((a, b), r) in slice.iter().zip(&out) {
-            let s = distance_triangle_triangle(a, b);
-            assert_eq!(r.distance.to_bits(), s.distance.to_bits(), "{a:?} {b:?}");
-            assert_eq!(r.p, s.p);
-            assert_eq!(r.q, s.q);
+    for isa in common::available_isas() {
+        for offset in [0, 3] {
+            let slice = &pairs[offset..];
+            let mut out = vec![distance_triangle_triangle(&slice[0].0, &slice[0].1); slice.len()];
+            dem::distance::distance_triangle_triangle_many_on(slice, isa, &mut out);
+            for ((a, b), r) in slice.iter().zip(&out) {
+                let s = distance_triangle_triangle(a, b);
+                assert_eq!(
+                    r.distance.to_bits(),
+                    s.distance.to_bits(),
+                    "{isa:?}: {a:?} {b:?}"
+                );
+                assert_eq!(r.p, s.p, "{isa:?}");
+                assert_eq!(r.q, s.q, "{isa:?}");
+            }
         }
     }
 }

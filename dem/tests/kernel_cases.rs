@@ -140,3 +140,41 @@ fn every_schedule_on_every_pool_gives_the_one_thread_answer() {
         }
     }
 }
+
+/// The penalty kernel gives the same answers and statistics, bit for bit, on
+/// every instruction set this CPU has, for every batch size (the wide ones
+/// load and store through in-register transposes, the baseline lane by lane),
+/// on the hard cases and on random pairs.
+#[test]
+fn penalty_answers_do_not_depend_on_the_instruction_set() {
+    use dem::distance::{penalty_many_on, Closest, Isa, PenaltyParams, PenaltyStats};
+    let mut pairs = pairs(&common::load_cases());
+    pairs.extend(dem::distance::random_unit_pairs(3001, 5));
+    let prm = PenaltyParams::default();
+    let run = |isa: Isa, batch: usize| {
+        let mut out = vec![Closest::UNSET; pairs.len()];
+        let mut stats = vec![PenaltyStats::default(); pairs.len()];
+        penalty_many_on(&pairs, batch, &prm, isa, &mut out, &mut stats).unwrap();
+        (out, stats)
+    };
+    let bits =
+        |c: &Closest| [c.distance, c.p.x, c.p.y, c.p.z, c.q.x, c.q.y, c.q.z].map(f64::to_bits);
+    let isas = common::available_isas();
+    eprintln!("instruction sets: {isas:?}");
+    for batch in [1, 2, 4, 8, 16, 32, 64] {
+        let (reference, reference_stats) = run(Isa::Baseline, batch);
+        for &isa in &isas {
+            let (out, stats) = run(isa, batch);
+            for k in 0..pairs.len() {
+                assert!(
+                    bits(&out[k]) == bits(&reference[k]) && stats[k] == reference_stats[k],
+                    "{isa:?}, batch {batch}, pair {k}: {:?} {:?} against baseline {:?} {:?}",
+                    out[k],
+                    stats[k],
+                    reference[k],
+                    reference_stats[k]
+                );
+            }
+        }
+    }
+}

@@ -16,7 +16,9 @@
 use super::isa::Isa;
 use super::pair_lanes::{load_pairs, store_answers, AnswerLanes, PairLanes};
 #[cfg(target_arch = "x86_64")]
-use super::pair_lanes::{load_pairs_avx512, store_answers_avx512};
+use super::pair_lanes::{
+    load_pairs_avx2, load_pairs_avx512, store_answers_avx2, store_answers_avx512,
+};
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::{Closest, Solver};
 
@@ -305,8 +307,9 @@ unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn batch_avx2<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
-    let found = batch_from_lanes(&load_pairs(pairs));
-    store_answers(&answers(&found), Solver::Brute, out);
+    // SAFETY: this function's caller guarantees AVX2.
+    let found = batch_from_lanes(&unsafe { load_pairs_avx2(pairs) });
+    unsafe { store_answers_avx2(&answers(&found), Solver::Brute, out) };
 }
 
 /// Exact distances of up to `LANES` pairs at once (`out.len() == pairs.len()`).
@@ -334,8 +337,18 @@ pub fn distance_triangle_triangle_batch<P: PairSource + ?Sized>(
 
 /// Exact distances of any number of pairs, `LANES` at a time.
 pub fn distance_triangle_triangle_many<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
+    distance_triangle_triangle_many_on(pairs, Isa::detect(), out)
+}
+
+/// Like [`distance_triangle_triangle_many`] on a chosen instruction set (never
+/// above what the CPU has: a higher one is lowered to the detected one).
+pub fn distance_triangle_triangle_many_on<P: PairSource + ?Sized>(
+    pairs: &P,
+    isa: Isa,
+    out: &mut [Closest],
+) {
     assert_eq!(pairs.len(), out.len());
-    let isa = Isa::detect();
+    let isa = isa.available();
     for r in chunk_ranges(pairs.len(), LANES) {
         distance_triangle_triangle_batch(&Window::new(pairs, r.clone()), isa, &mut out[r]);
     }

@@ -31,7 +31,8 @@ pub use closest_point_segment_segment::closest_points_segment_segment;
 pub use closest_point_triangle::closest_point_triangle;
 pub use distance_triangle_triangle::distance_triangle_triangle;
 pub use distance_triangle_triangle_batch::{
-    distance_triangle_triangle_batch, distance_triangle_triangle_many, LANES as BRUTE_LANES,
+    distance_triangle_triangle_batch, distance_triangle_triangle_many,
+    distance_triangle_triangle_many_on, LANES as BRUTE_LANES,
 };
 pub use hybrid::{
     distance_many, distance_many_serial, distances, Counts, Fallback, Method, Options, Schedule,

@@ -8,6 +8,9 @@
 //! of eight triangles, or eight answers) are transposed in registers with 24
 //! shuffles, so each row moves with one vector load or store; only the ninth
 //! coordinate of a triangle (its last vertex's z) still goes lane by lane.
+//! With AVX2 the same is done four lanes at a time: two 4x4 transposes of 8
+//! shuffles each per triangle (coordinates 0-3 and 4-7), and two for the
+//! answers (distance and P, then Q).
 
 // Index loops over the lanes are the shape the vectoriser recognises best.
 #![allow(clippy::needless_range_loop)]
@@ -90,6 +93,55 @@ pub(crate) unsafe fn load_pairs_avx512<const N: usize, P: PairSource + ?Sized>(
     out
 }
 
+/// [`load_pairs`] with AVX vector loads and 4x4 transposes in registers, for
+/// batches of a multiple of 4 pairs that are full; anything else goes lane by lane.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn load_pairs_avx2<const N: usize, P: PairSource + ?Sized>(
+    pairs: &P,
+) -> PairLanes<N> {
+    use std::arch::x86_64::*;
+    if !N.is_multiple_of(4) || pairs.len() != N {
+        return load_pairs(pairs);
+    }
+    let mut out = [[[0.0; N]; 3]; 6];
+    for group in (0..N).step_by(4) {
+        // Per triangle (a, b) and half (coordinates 0-3, 4-7): four rows.
+        let mut rows = [[[_mm256_setzero_pd(); 4]; 2]; 2];
+        let mut last = [[0.0; 4]; 2];
+        for lane in 0..4 {
+            let (a, b) = pairs.pair(group + lane);
+            for (t, tri) in [a, b].into_iter().enumerate() {
+                let ptr = tri.as_ptr().cast::<f64>();
+                // SAFETY: a triangle is nine consecutive f64 (asserted above),
+                // so f64 0-3 and 4-7 are inside it.
+                unsafe {
+                    rows[t][0][lane] = _mm256_loadu_pd(ptr);
+                    rows[t][1][lane] = _mm256_loadu_pd(ptr.add(4));
+                }
+                last[t][lane] = tri[2].z;
+            }
+        }
+        for t in 0..2 {
+            for half in 0..2 {
+                let cols = transpose_4x4(rows[t][half]);
+                for (j, col) in cols.into_iter().enumerate() {
+                    let c = 4 * half + j;
+                    let (v, k) = (3 * t + c / 3, c % 3);
+                    // SAFETY: `group + 4 <= N`, so each store stays inside its row.
+                    unsafe { _mm256_storeu_pd(out[v][k][group..].as_mut_ptr(), col) };
+                }
+            }
+            out[3 * t + 2][2][group..group + 4].copy_from_slice(&last[t]);
+        }
+    }
+    out
+}
+
 /// Answers of `N` lanes, where the kernel left them: distance and closest
 /// points (in the pairs' own coordinates), one coordinate per row.
 pub(crate) struct AnswerLanes<'a, const N: usize> {
@@ -166,8 +218,48 @@ pub(crate) unsafe fn store_answers_avx512<const N: usize>(
     }
 }
 
-/// [`store_answers_avx512`] where the CPU has AVX-512F (`isa` from
-/// [`Isa::available`]), [`store_answers`] otherwise.
+/// [`store_answers`] with 4x4 transposes in registers and two vector
+/// stores per answer, for a multiple of 4 lanes all written; anything else
+/// goes lane by lane.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn store_answers_avx2<const N: usize>(
+    ans: &AnswerLanes<'_, N>,
+    solver: Solver,
+    out: &mut [Closest],
+) {
+    use std::arch::x86_64::*;
+    if !N.is_multiple_of(4) || out.len() != N {
+        return store_answers(ans, solver, out);
+    }
+    // The first three lanes of a 4-wide store: Q without what follows it.
+    let three = _mm256_set_epi64x(0, -1, -1, -1);
+    for group in (0..N).step_by(4) {
+        // SAFETY: `group + 4 <= N`, so each load stays inside its row.
+        let load = |row: &[f64; N]| unsafe { _mm256_loadu_pd(row[group..].as_ptr()) };
+        let d = load(ans.distance);
+        let dp = transpose_4x4([d, load(ans.p[0]), load(ans.p[1]), load(ans.p[2])]);
+        let q = transpose_4x4([load(ans.q[0]), load(ans.q[1]), load(ans.q[2]), d]);
+        for lane in 0..4 {
+            let o = &mut out[group + lane];
+            let ptr = (o as *mut Closest).cast::<f64>();
+            // SAFETY: a `Closest` starts with its distance, P and Q, seven
+            // f64 (asserted above); the mask leaves what follows Q alone.
+            unsafe {
+                _mm256_storeu_pd(ptr, dp[lane]);
+                _mm256_maskstore_pd(ptr.add(4), three, q[lane]);
+            }
+            o.solver = solver;
+        }
+    }
+}
+
+/// [`store_answers_avx512`] or [`store_answers_avx2`] where the CPU has the
+/// instructions (`isa` from [`Isa::available`]), [`store_answers`] otherwise.
 #[inline]
 pub(crate) fn store_answers_on<const N: usize>(
     ans: &AnswerLanes<'_, N>,
@@ -179,8 +271,31 @@ pub(crate) fn store_answers_on<const N: usize>(
         // SAFETY: `Isa::available` checked AVX-512F on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 => unsafe { store_answers_avx512(ans, solver, out) },
+        // SAFETY: `Isa::available` checked AVX2 on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { store_answers_avx2(ans, solver, out) },
         _ => store_answers(ans, solver, out),
     }
+}
+
+/// Transposes the 4x4 matrix whose rows are `r`: pairs of rows interleaved,
+/// then the 128-bit halves of those exchanged.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+fn transpose_4x4(r: [std::arch::x86_64::__m256d; 4]) -> [std::arch::x86_64::__m256d; 4] {
+    use std::arch::x86_64::*;
+    // (r0[0], r1[0], r0[2], r1[2]) and (r0[1], r1[1], r0[3], r1[3]); then rows 2, 3.
+    let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+    [
+        _mm256_permute2f128_pd::<0x20>(t0, t2),
+        _mm256_permute2f128_pd::<0x20>(t1, t3),
+        _mm256_permute2f128_pd::<0x31>(t0, t2),
+        _mm256_permute2f128_pd::<0x31>(t1, t3),
+    ]
 }
 
 /// Transposes the 8x8 matrix whose rows are `r`: three rounds of shuffles,
@@ -243,6 +358,12 @@ mod tests {
             let fast = unsafe { load_pairs_avx512::<N, _>(pairs) };
             assert_eq!(fast, lanes);
         }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: checked just above.
+            let fast = unsafe { load_pairs_avx2::<N, _>(pairs) };
+            assert_eq!(fast, lanes);
+        }
     }
 
     #[test]
@@ -277,6 +398,13 @@ mod tests {
             let mut fast = vec![blank; n];
             // SAFETY: checked just above.
             unsafe { store_answers_avx512(&ans, Solver::Brute, &mut fast) };
+            assert_eq!(fast, out);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            let mut fast = vec![blank; n];
+            // SAFETY: checked just above.
+            unsafe { store_answers_avx2(&ans, Solver::Brute, &mut fast) };
             assert_eq!(fast, out);
         }
     }

@@ -22,9 +22,9 @@
 
 use super::isa::Isa;
 use super::lanes::{F, V3};
-#[cfg(target_arch = "x86_64")]
-use super::pair_lanes::load_pairs_avx512;
 use super::pair_lanes::{load_pairs, store_answers_on, AnswerLanes, PairLanes};
+#[cfg(target_arch = "x86_64")]
+use super::pair_lanes::{load_pairs_avx2, load_pairs_avx512};
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty_finish::{finish_lanes, Finished};
 use super::solve_spd4::{solve_spd4_by_blocks, Sym4, SYM4_INDEX};
@@ -229,7 +229,8 @@ unsafe fn kernel_avx2<const N: usize, P: PairSource + ?Sized>(
     pairs: &P,
     prm: &PenaltyParams,
 ) -> (Finished<N>, [u8; N]) {
-    kernel(&load_pairs(pairs), prm)
+    // SAFETY: this function's caller guarantees AVX2.
+    kernel(&unsafe { load_pairs_avx2(pairs) }, prm)
 }
 
 fn kernel_on<const N: usize, P: PairSource + ?Sized>(

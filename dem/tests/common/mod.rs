@@ -111,3 +111,13 @@ pub fn membership_tolerance(c: &Case) -> f64 {
     let ulps = 8.0 * f64::EPSILON * max_coord;
     1e-12 * l + ulps
 }
+
+/// The kernels' instruction sets this CPU runs, best first (the baseline
+/// always): each is tested, not only the one `Isa::detect` picks.
+pub fn available_isas() -> Vec<dem::distance::Isa> {
+    use dem::distance::Isa;
+    [Isa::Avx512, Isa::Avx2, Isa::Baseline]
+        .into_iter()
+        .filter(|i| i.available() == *i)
+        .collect()
+}
