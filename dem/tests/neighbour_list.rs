@@ -2,6 +2,8 @@
 //! when some body may have left its padded box, yet every step examines the
 //! same body pairs, finds the same contacts and gives the same motion, to the
 //! bit, as a broad phase in every step.
+mod common;
+
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -22,14 +24,7 @@ fn run(scene: &Scene, skin: f64, steps: usize) -> (Vec<[u64; 4]>, Vec<Vec<u64>>,
         sim.step();
         let d = sim.last_stats().detection;
         counts.push([d.body_pairs, d.triangle_pairs, d.contacts, d.fallback_pairs]);
-        states.push(
-            sim.world
-                .bodies
-                .iter()
-                .flat_map(|b| b.x.to_array().into_iter().chain(b.l.to_array()))
-                .map(f64::to_bits)
-                .collect(),
-        );
+        states.push(common::motion_bits(&sim.world));
     }
     (counts, states, sim.totals.detection.broad_phases)
 }

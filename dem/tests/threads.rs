@@ -2,6 +2,8 @@
 //! contact detection's per-thread copies of the triangles (one set per pool
 //! thread) hold what the one set of a one-thread run holds, also after bodies,
 //! moving or static, were placed by hand.
+mod common;
+
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use glam::DVec3;
@@ -38,14 +40,7 @@ fn run(scene: &Scene, threads: usize, steps: usize) -> (Vec<Vec<u64>>, u32) {
                 sim.forget_motion();
             }
             sim.step();
-            states.push(
-                sim.world
-                    .bodies
-                    .iter()
-                    .flat_map(|b| b.x.to_array().into_iter().chain(b.l.to_array()))
-                    .map(f64::to_bits)
-                    .collect(),
-            );
+            states.push(common::motion_bits(&sim.world));
         }
         (states, sim.contact_counts()[floor])
     })

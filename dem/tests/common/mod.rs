@@ -121,3 +121,14 @@ pub fn available_isas() -> Vec<dem::distance::Isa> {
         .filter(|i| i.available() == *i)
         .collect()
 }
+
+/// Every body's position and angular momentum, as bits: two runs moved the
+/// same when these are equal, step by step.
+pub fn motion_bits(world: &dem::world::World) -> Vec<u64> {
+    world
+        .bodies
+        .iter()
+        .flat_map(|b| b.x.to_array().into_iter().chain(b.l.to_array()))
+        .map(f64::to_bits)
+        .collect()
+}
