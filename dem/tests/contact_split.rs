@@ -211,17 +211,35 @@ fn the_simulation_detector_matches_the_phase_api() {
 /// needs them, and keeps its set from step to step. Over steps in which the
 /// bodies move (and some stay untouched by any task for a while), it must
 /// find what a set recomputed from scratch each step gives.
+///
+/// On one, two and three threads, each with a copy of the set of its own
+/// and (a budget of 0 bytes for copies) sharing one.
 #[test]
 fn the_detector_keeps_up_with_moving_bodies() {
+    for threads in [1, 2, 3] {
+        for budget in [None, Some(0)] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut detector = Detector::default();
+            if let Some(bytes) = budget {
+                detector = detector.with_replica_budget(bytes);
+            }
+            pool.install(|| keeps_up(detector, &format!("{threads} threads, budget {budget:?}")));
+        }
+    }
+}
+
+fn keeps_up(mut detector: Detector, context: &str) {
     let (mut world, halos) = dense_world();
-    let mut detector = Detector::default();
     for step in 0..6 {
         let mut contacts = Vec::new();
         detector.detect(&world, &halos, &brute(), &mut contacts);
         let mut found = one_node(&world, &halos, &brute());
         let mut expected = Vec::new();
         body_contacts(&mut found, &halos, &mut expected);
-        assert_eq!(contacts, expected, "step {step}");
+        assert_eq!(contacts, expected, "{context}, step {step}");
         // Spread the pile out and turn every other particle: after a few
         // steps most pairs separate, so their bodies go unfilled; then the
         // pile is pushed back together.

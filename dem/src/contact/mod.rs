@@ -141,7 +141,17 @@ pub struct Detector {
     listed: Option<Vec<(usize, usize)>>,
     /// How far any point of any body may have moved since the list was built.
     travel: f64,
+    /// Bytes the copies of the set beyond the first may take (`None`:
+    /// [`REPLICA_BUDGET`]); see [`Detector::with_replica_budget`].
+    replica_budget: Option<usize>,
 }
+
+/// Bytes the per-thread copies of the triangle set may take by default,
+/// beyond the first: 256 MiB, a copy per thread (128 bytes per triangle)
+/// for up to two million triangles on two threads, 65,000 on 32. Larger
+/// sets get fewer copies,
+/// shared by the threads in turn (a copy is a speed-up, never needed).
+pub const REPLICA_BUDGET: usize = 256 << 20;
 
 /// What one parallel task of a detection pass owns: its share of the body
 /// pairs is culled and sent through the kernel by the same thread, so the
@@ -180,6 +190,16 @@ impl Detector {
         Detector {
             skin,
             ..Detector::default()
+        }
+    }
+
+    /// This detector with at most `bytes` for the copies of the triangle set
+    /// beyond the first (0: one set, shared by all threads; results do not
+    /// depend on it).
+    pub fn with_replica_budget(self, bytes: usize) -> Detector {
+        Detector {
+            replica_budget: Some(bytes),
+            ..self
         }
     }
 
@@ -228,7 +248,10 @@ impl Detector {
         // its own: in one shared set, the triangles one core filled were
         // read by the other, and moving them between the cores cost more
         // than filling a body twice (docs/dem.md, sessions 15 and 16).
-        sets.resize_with(rayon::current_num_threads().max(1), TriangleSet::default);
+        let copies = self.replica_budget.unwrap_or(REPLICA_BUDGET) / sets[0].bytes().max(1);
+        let n_sets = rayon::current_num_threads().clamp(1, 1 + copies);
+        sets.truncate(n_sets);
+        sets.resize_with(n_sets, TriangleSet::default);
         let (primary, replicas) = sets.split_at_mut(1);
         for r in replicas {
             r.mirror_lazily(&primary[0]);
@@ -402,9 +425,10 @@ fn run_tasks(
 }
 
 impl Pass<'_> {
-    /// The set the calling thread reads and fills. Any set would give the
-    /// same answers (they hold the same triangles); its own keeps them in
-    /// its core's cache.
+    /// The set the calling thread reads and fills: thread k's is set k,
+    /// or with fewer sets than threads (see [`REPLICA_BUDGET`]) set k modulo
+    /// their number. Any set would give the same answers (they hold the same
+    /// triangles); its own keeps them in its core's cache.
     fn set_of_this_thread(&self) -> &TriangleSet {
         let k = rayon::current_thread_index().unwrap_or(0);
         &self.sets[k % self.sets.len()]

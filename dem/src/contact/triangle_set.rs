@@ -557,6 +557,12 @@ impl TriangleSet {
         self.owned..self.keys.len()
     }
 
+    /// Bytes the set's triangles and their keys take (most of its memory).
+    pub fn bytes(&self) -> usize {
+        self.triangles.len()
+            * (std::mem::size_of::<Slot<SetTriangle>>() + std::mem::size_of::<TriangleKey>())
+    }
+
     pub fn len(&self) -> usize {
         self.keys.len()
     }
