@@ -149,8 +149,8 @@ pub struct Detector {
 /// Bytes the per-thread copies of the triangle set may take by default,
 /// beyond the first: 256 MiB, a copy per thread (128 bytes per triangle)
 /// for up to two million triangles on two threads, 65,000 on 32. Larger
-/// sets get fewer copies,
-/// shared by the threads in turn (a copy is a speed-up, never needed).
+/// sets get fewer copies, shared by the threads in turn (a copy is a
+/// speed-up, never needed).
 pub const REPLICA_BUDGET: usize = 256 << 20;
 
 /// What one parallel task of a detection pass owns: its share of the body
