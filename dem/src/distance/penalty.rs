@@ -257,6 +257,15 @@ pub(crate) fn penalty_batch_on<const N: usize, P: PairSource + ?Sized>(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) {
+    // Two or four lanes fill at most a 256-bit register, and the AVX-512
+    // build of the kernel for them came out slower than the AVX2 one (batch
+    // 4: 121 against 66 ns/pair on the Zen 4 VM, 90 against 54 on Zen 5;
+    // docs/distance.md); AVX-512 CPUs have AVX2 and FMA too. Answers are the
+    // same on every instruction set.
+    let isa = match (isa, N) {
+        (Isa::Avx512, 2 | 4) => Isa::Avx2,
+        _ => isa,
+    };
     let (f, iters) = kernel_on::<N, _>(pairs, prm, isa);
     let answers = AnswerLanes {
         distance: &f.distance.0,
