@@ -454,7 +454,11 @@ impl Task {
         let groups = set.groups();
         self.owners.clear();
         self.body_pairs = 0;
-        for &(g, h) in body_pairs {
+        for (k, &(g, h)) in body_pairs.iter().enumerate() {
+            if let Some(&(g_next, h_next)) = body_pairs.get(k + 1) {
+                set.prefetch_pose(g_next, world);
+                set.prefetch_pose(h_next, world);
+            }
             set.fill_group(g, world, &mut self.vertices);
             set.fill_group(h, world, &mut self.vertices);
             let (ga, gb) = (&groups[g], &groups[h]);
