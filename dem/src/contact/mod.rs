@@ -454,8 +454,10 @@ impl Task {
         let groups = set.groups();
         self.owners.clear();
         self.body_pairs = 0;
+        // On one thread the poses are in this core's cache already.
+        let prefetch = rayon::current_num_threads() > 1;
         for (k, &(g, h)) in body_pairs.iter().enumerate() {
-            if let Some(&(g_next, h_next)) = body_pairs.get(k + 1) {
+            if let Some(&(g_next, h_next)) = body_pairs.get(k + 1).filter(|_| prefetch) {
                 set.prefetch_pose(g_next, world);
                 set.prefetch_pose(h_next, world);
             }
