@@ -17,6 +17,7 @@ pub mod effects;
 pub mod integrate;
 pub mod material;
 pub mod mesh;
+mod prefetch;
 pub mod scene;
 pub mod simulation;
 pub mod timing;

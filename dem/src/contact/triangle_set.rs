@@ -16,6 +16,7 @@ use super::bounds::Bounds;
 use crate::body::Body;
 use crate::distance::Triangle;
 use crate::mesh::TriMesh;
+use crate::prefetch::prefetch;
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
@@ -177,18 +178,6 @@ fn world_vertices(body: &Body, mesh: &TriMesh, out: &mut Vec<DVec3>) {
     out.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
 }
 
-/// A hint to load the cache line holding `p` (a no-op off x86-64).
-#[inline(always)]
-fn prefetch(p: *const i8) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing and faults on no address.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p)
-    };
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
-}
-
 /// Bodies per parallel task when the set follows the world: small, because
 /// the work per body is uneven (static bodies cost nothing after the first
 /// step and are often numbered last, so coarse shares leave a thread idle).
@@ -276,7 +265,6 @@ impl TriangleSet {
     /// Why: on several threads the pose was last written by whichever core
     /// integrated the body, and waiting for its cache line took a quarter of
     /// the fills' time at two threads (hopper, Zen 5 VM, docs/dem.md).
-    /// Only a hint: nothing is read, so it can be neither wrong nor unsafe.
     #[inline]
     pub(crate) fn prefetch_pose(&self, g: usize, world: &World) {
         let (Some(state), Some(group)) = (self.fresh.0.get(g), self.groups.get(g)) else {
@@ -288,9 +276,9 @@ impl TriangleSet {
         let Some(body) = world.bodies.get(group.body as usize) else {
             return;
         };
-        prefetch(std::ptr::addr_of!(body.shape).cast());
-        prefetch(std::ptr::addr_of!(body.x).cast());
-        prefetch(std::ptr::addr_of!(body.q).cast());
+        prefetch(&body.shape);
+        prefetch(&body.x);
+        prefetch(&body.q);
     }
 
     /// Makes this set a replica of `primary`, a set that follows the world
