@@ -153,6 +153,10 @@ pub struct Detector {
 /// speed-up, never needed).
 pub const REPLICA_BUDGET: usize = 256 << 20;
 
+/// How many body pairs ahead a detection task asks for the poses of the
+/// bodies it will fill (see `TriangleSet::prefetch_pose`).
+const PREFETCH_AHEAD: usize = 2;
+
 /// What one parallel task of a detection pass owns: its share of the body
 /// pairs is culled and sent through the kernel by the same thread, so the
 /// triangle pairs stay in its cache and no pass joins between the two.
@@ -456,11 +460,15 @@ impl Task {
         self.body_pairs = 0;
         // On one thread the poses are in this core's cache already.
         let prefetch = rayon::current_num_threads() > 1;
-        for (k, &(g, h)) in body_pairs.iter().enumerate() {
-            if let Some(&(g_next, h_next)) = body_pairs.get(k + 1).filter(|_| prefetch) {
-                set.prefetch_pose(g_next, world);
-                set.prefetch_pose(h_next, world);
+        let prefetch_pair = |k: usize| {
+            if let Some(&(g, h)) = body_pairs.get(k).filter(|_| prefetch) {
+                set.prefetch_pose(g, world);
+                set.prefetch_pose(h, world);
             }
+        };
+        (0..PREFETCH_AHEAD).for_each(prefetch_pair);
+        for (k, &(g, h)) in body_pairs.iter().enumerate() {
+            prefetch_pair(k + PREFETCH_AHEAD);
             set.fill_group(g, world, &mut self.vertices);
             set.fill_group(h, world, &mut self.vertices);
             let (ga, gb) = (&groups[g], &groups[h]);
