@@ -5,12 +5,14 @@
 //! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
 //! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
 //!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
+//! - [`checkpoint`]: a run's whole state, to stop it and resume it unchanged.
 //! - [`timing`]: where a run's time goes, by section of the step pipeline.
 //! - [`busy_workers`]: keeps the thread pool polling through a run of short
 //!   parallel sections.
 
 pub mod body;
 pub mod busy_workers;
+pub mod checkpoint;
 pub mod contact;
 pub mod distance;
 pub mod effects;

@@ -1,5 +1,6 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
+use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
 use crate::effects::{
     ContactEffect, DampingEffect, Effect, Forces, FrictionEffect, GravityEffect, StepContext,
     StepStats,
@@ -40,8 +41,135 @@ pub struct Simulation {
 }
 
 impl Simulation {
-    /// Builds the pipeline from exactly the effects the scene declares.
+    /// Builds the pipeline from exactly the effects the scene declares, and
+    /// evaluates the forces of the scene's initial state.
     pub fn new(scene: &Scene) -> Simulation {
+        let mut sim = Simulation::pipeline(scene);
+        let names: Vec<_> = sim.effects.iter().map(|e| e.name()).collect();
+        sim.evaluate_forces();
+        // Time counts from the first step.
+        sim.timings = SectionTimes::for_effects(names);
+        sim
+    }
+
+    /// Goes on from `checkpoint`, taken of a run of `scene` by
+    /// [`Simulation::checkpoint`]: the steps that follow give what the run
+    /// would have given had it not stopped, bit for bit. The effects and
+    /// their parameters are the scene's; refused when the checkpoint's bodies,
+    /// time step or effects' states do not fit it.
+    pub fn resume(scene: &Scene, checkpoint: &Checkpoint) -> Result<Simulation, CheckpointError> {
+        let fail = |why: String| Err(CheckpointError(why));
+        let mut sim = Simulation::pipeline(scene);
+        let n = sim.world.bodies.len();
+        if checkpoint.fingerprint != sim.world.fingerprint() {
+            return fail(
+                "the checkpoint was taken of another scene (materials, shapes, bodies or obstacles differ)"
+                    .into(),
+            );
+        }
+        if checkpoint.dt.to_bits() != scene.dt.to_bits() {
+            return fail(format!(
+                "the checkpoint's run stepped by dt = {:e} s, the scene by {:e} s",
+                checkpoint.dt, scene.dt
+            ));
+        }
+        let counts = [
+            checkpoint.bodies.len(),
+            checkpoint.force.len(),
+            checkpoint.torque.len(),
+        ];
+        if counts != [n; 3] {
+            return fail(format!(
+                "the scene has {n} bodies, the checkpoint {} bodies, {} forces and {} torques",
+                counts[0], counts[1], counts[2]
+            ));
+        }
+        let finite = |s: &BodyState| {
+            s.x.is_finite() && s.q.is_finite() && s.v.is_finite() && s.l.is_finite()
+        };
+        if let Some(i) = checkpoint.bodies.iter().position(|s| !finite(s)) {
+            return fail(format!("body {i}'s state in the checkpoint is not finite"));
+        }
+        let loads = checkpoint.force.iter().zip(&checkpoint.torque);
+        if let Some(i) = loads
+            .clone()
+            .position(|(f, t)| !f.is_finite() || !t.is_finite())
+        {
+            return fail(format!(
+                "the force on body {i} in the checkpoint is not finite"
+            ));
+        }
+        if !(checkpoint.time.is_finite()) {
+            return fail(format!(
+                "the checkpoint's time {} is not finite",
+                checkpoint.time
+            ));
+        }
+        for (b, s) in sim.world.bodies.iter_mut().zip(&checkpoint.bodies) {
+            (b.x, b.q, b.v, b.l) = (s.x, s.q, s.v, s.l);
+        }
+        sim.world.time = checkpoint.time;
+        sim.world.step = checkpoint.step;
+        sim.forces.force.clone_from(&checkpoint.force);
+        sim.forces.torque.clone_from(&checkpoint.torque);
+        let mut states = checkpoint.effects.iter();
+        for e in &mut sim.effects {
+            if e.state().is_none() {
+                continue;
+            }
+            let Some(state) = states.next().filter(|s| s.effect == e.name()) else {
+                return fail(format!(
+                    "the scene declares the {} effect, whose state the checkpoint lacks",
+                    e.name()
+                ));
+            };
+            e.restore(&state.values, &sim.world)
+                .map_err(CheckpointError)?;
+        }
+        if let Some(extra) = states.next() {
+            return fail(format!(
+                "the checkpoint holds the state of the {} effect, which the scene does not declare (or not in this order)",
+                extra.effect
+            ));
+        }
+        // Neighbour lists and caches are rebuilt from the restored bodies.
+        sim.forget_motion();
+        Ok(sim)
+    }
+
+    /// The state [`Simulation::resume`] goes on from.
+    pub fn checkpoint(&self) -> Checkpoint {
+        let effects = self.effects.iter().filter_map(|e| {
+            let values = e.state()?;
+            Some(EffectState {
+                effect: e.name().to_string(),
+                values,
+            })
+        });
+        Checkpoint {
+            time: self.world.time,
+            step: self.world.step,
+            dt: self.dt,
+            fingerprint: self.world.fingerprint(),
+            bodies: self
+                .world
+                .bodies
+                .iter()
+                .map(|b| BodyState {
+                    x: b.x,
+                    q: b.q,
+                    v: b.v,
+                    l: b.l,
+                })
+                .collect(),
+            force: self.forces.force.clone(),
+            torque: self.forces.torque.clone(),
+            effects: effects.collect(),
+        }
+    }
+
+    /// The effects the scene declares, on the scene's world; forces not yet evaluated.
+    fn pipeline(scene: &Scene) -> Simulation {
         let world = scene.world.clone();
         let mut effects: Vec<Box<dyn Effect>> = Vec::new();
         if let Some(g) = scene.effects.gravity {
@@ -81,9 +209,6 @@ impl Simulation {
             timings: SectionTimes::default(),
         };
         let names: Vec<_> = sim.effects.iter().map(|e| e.name()).collect();
-        sim.timings = SectionTimes::for_effects(names.iter().copied());
-        sim.evaluate_forces();
-        // Time counts from the first step.
         sim.timings = SectionTimes::for_effects(names);
         sim
     }

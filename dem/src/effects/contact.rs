@@ -89,4 +89,22 @@ impl Effect for ContactEffect {
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
         self.energy
     }
+
+    /// The springs' energy only, for [`Effect::potential_energy`]: contacts
+    /// are found afresh every step.
+    fn state(&self) -> Option<Vec<f64>> {
+        Some(vec![self.energy])
+    }
+
+    fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
+        match values {
+            [energy] if energy.is_finite() => {
+                self.energy = *energy;
+                Ok(())
+            }
+            _ => Err(format!(
+                "the contact effect's state is one finite number (the springs' energy), got {values:?}"
+            )),
+        }
+    }
 }

@@ -88,6 +88,45 @@ impl Effect for FrictionEffect {
         }
         std::mem::swap(&mut self.history, &mut self.next);
     }
+
+    /// The tangential springs: per body pair in contact, a, b and ξ.
+    fn state(&self) -> Option<Vec<f64>> {
+        let entry =
+            |&((a, b), xi): &((usize, usize), DVec3)| [a as f64, b as f64, xi.x, xi.y, xi.z];
+        Some(self.history.iter().flat_map(entry).collect())
+    }
+
+    fn restore(&mut self, values: &[f64], world: &World) -> Result<(), String> {
+        if !values.len().is_multiple_of(5) {
+            return Err(format!(
+                "the friction effect's state holds 5 numbers per body pair (a, b, ξ), got {}",
+                values.len()
+            ));
+        }
+        let n = world.bodies.len();
+        let index = |v: f64| (v >= 0.0 && v.fract() == 0.0 && v < n as f64).then_some(v as usize);
+        self.history.clear();
+        for (k, e) in values.chunks_exact(5).enumerate() {
+            let xi = DVec3::new(e[2], e[3], e[4]);
+            let pair = index(e[0]).zip(index(e[1]));
+            match pair {
+                Some((a, b))
+                    if a < b
+                        && xi.is_finite()
+                        && self.history.last().is_none_or(|last| last.0 < (a, b)) =>
+                {
+                    self.history.push(((a, b), xi))
+                }
+                _ => {
+                    return Err(format!(
+                        "friction state, body pair {k}: {e:?} is not a pair of bodies a < b \
+                         (of {n}), in increasing order, with a finite displacement"
+                    ))
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The friction force of one body pair in contact, from its contacts, their

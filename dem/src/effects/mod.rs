@@ -119,4 +119,16 @@ pub trait Effect: Send {
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
         0.0
     }
+    /// What the effect carries from one step to the next, for a checkpoint
+    /// (`None`: nothing, each step starts afresh).
+    fn state(&self) -> Option<Vec<f64>> {
+        None
+    }
+    /// Takes back what [`Effect::state`] gave, in a simulation of `world`.
+    fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
+        match values {
+            [] => Ok(()),
+            _ => Err(format!("the {} effect keeps no state", self.name())),
+        }
+    }
 }

@@ -1,0 +1,52 @@
+//! The complete state of a running simulation, to stop a run and resume it
+//! later with the same answers, bit for bit, as if it had not stopped.
+//!
+//! Velocity Verlet carries the forces of the last evaluation into the next
+//! step's opening half kick, and those forces were evaluated at the half-step
+//! velocities: they cannot be recomputed from the positions and velocities an
+//! output step holds. Friction carries each contact's tangential spring. So a
+//! checkpoint holds, besides the bodies, the forces and every effect's own
+//! state. What is derived (neighbour lists, triangle caches) is rebuilt.
+
+use glam::{DQuat, DVec3};
+
+/// The moving state of one body.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BodyState {
+    pub x: DVec3,
+    pub q: DQuat,
+    pub v: DVec3,
+    pub l: DVec3,
+}
+
+/// What one effect of the pipeline carries from step to step, as numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectState {
+    /// The effect's name in the scene (`friction`, ...).
+    pub effect: String,
+    pub values: Vec<f64>,
+}
+
+/// Everything a [`Simulation`](crate::simulation::Simulation) needs to go on
+/// from where it was, given the scene it was built from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Checkpoint {
+    pub time: f64,
+    pub step: u64,
+    /// The time step the run used: resuming with another would not continue it.
+    pub dt: f64,
+    /// [`World::fingerprint`](crate::world::World::fingerprint) of the run's
+    /// scene.
+    pub fingerprint: u64,
+    pub bodies: Vec<BodyState>,
+    /// The last force evaluation, per body.
+    pub force: Vec<DVec3>,
+    pub torque: Vec<DVec3>,
+    /// One entry per effect of the pipeline that has state, in pipeline order.
+    pub effects: Vec<EffectState>,
+}
+
+/// Why a checkpoint does not fit the scene it is resumed with.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct CheckpointError(pub String);
