@@ -81,9 +81,15 @@ pub struct RunArgs {
     /// Steps to run (default: end_time / dt of the scene).
     #[arg(long)]
     pub steps: Option<u64>,
-    /// Write HDF5 + XDMF output to this directory.
+    /// Write HDF5 + XDMF output to this directory, and at each output step
+    /// a checkpoint, DIR/checkpoint.h5.
     #[arg(long)]
     pub output: Option<PathBuf>,
+    /// Go on from a checkpoint of a run of the same scene, bit for bit as if
+    /// it had not stopped; with --output to the run's directory, its output
+    /// goes on in the same file. --steps counts the steps still to run.
+    #[arg(long)]
+    pub resume: Option<PathBuf>,
     /// Threads (default: all cores).
     #[arg(long, value_parser = at_least_one)]
     pub threads: Option<usize>,

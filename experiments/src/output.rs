@@ -9,7 +9,8 @@
 //!   surface of all bodies, which the XDMF file `DIR/run.xmf` shows as a time series.
 //!
 //! Each step is written and flushed as it is produced, so a run stopped early
-//! keeps everything written before.
+//! keeps everything written before; a run resumed from a checkpoint goes on
+//! appending to the same file.
 
 use crate::error::{create_output_dir, CliError, CliResult};
 use dem::simulation::Simulation;
@@ -53,6 +54,57 @@ impl Output {
             dir: dir.to_path_buf(),
             steps: Vec::new(),
         })
+    }
+
+    /// Opens the output of a run that `sim` resumes, to append to it; and
+    /// whether its last step is `sim`'s present state (a checkpoint is taken
+    /// with each output step). Refused when the file holds output of a later
+    /// time than `sim`'s: it belongs to a run that went further than the
+    /// checkpoint, and appending would interleave two histories.
+    pub fn append(dir: &Path, sim: &Simulation) -> CliResult<(Output, bool)> {
+        let path = dir.join("run.h5");
+        let fail = |why: String| CliError::input(format!("{}: {why}", path.display()));
+        let file = hdf5::File::open_rw(&path).map_err(|e| fail(e.to_string()))?;
+        let group = file
+            .group("steps")
+            .map_err(|e| fail(format!("not the output of tridem run: {e}")))?;
+        let mut steps = Vec::new();
+        for name in group.member_names().map_err(|e| fail(e.to_string()))? {
+            let step = |e: hdf5::Error| fail(format!("steps/{name}: {e}"));
+            let k: usize = name
+                .parse()
+                .map_err(|_| fail(format!("steps/{name}: not a step number")))?;
+            let g = group.group(&name).map_err(step)?;
+            let time: f64 = g.attr("time").and_then(|a| a.read_scalar()).map_err(step)?;
+            let n = g.dataset("positions").map_err(step)?.shape()[0];
+            let nt = g.dataset("surface/body").map_err(step)?.size();
+            steps.push((k, time, nt, n));
+        }
+        steps.sort_by_key(|s| s.0);
+        if steps.iter().enumerate().any(|(i, s)| s.0 != i) {
+            return Err(fail("output steps are not numbered 0, 1, 2, ...".into()));
+        }
+        let (time, n) = (sim.world.time, sim.world.bodies.len());
+        if let Some(s) = steps.iter().find(|s| s.3 != n) {
+            return Err(fail(format!(
+                "output step {} has {} bodies, the resumed run {n}",
+                s.0, s.3
+            )));
+        }
+        if let Some(s) = steps.iter().find(|s| s.1 > time) {
+            return Err(fail(format!(
+                "holds output step {} at t = {:e} s, after the checkpoint's t = {time:e} s; \
+                 write the resumed run to another directory",
+                s.0, s.1
+            )));
+        }
+        let current = steps.last().is_some_and(|s| s.1 == time);
+        let out = Output {
+            file,
+            dir: dir.to_path_buf(),
+            steps,
+        };
+        Ok((out, current))
     }
 
     /// Writes the current state as the next output step, then rewrites the XDMF index.

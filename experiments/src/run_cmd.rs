@@ -1,5 +1,6 @@
 //! `tridem run SCENE`: a DEM run on one node, with HDF5 output and a summary.
 
+use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::Output;
@@ -18,14 +19,43 @@ pub fn run(args: &RunArgs) -> CliResult {
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
-    let steps = args
-        .steps
-        .unwrap_or_else(|| (scene.end_time / scene.dt).round() as u64);
-    let mut sim = Simulation::new(&scene);
-    let mut out = match &args.output {
-        Some(dir) => Some(Output::create(dir, &sim)?),
-        None => None,
+    let (mut sim, first) = match &args.resume {
+        None => (Simulation::new(&scene), 0),
+        Some(file) => {
+            let c = checkpoint_file::read(file)?;
+            let sim = Simulation::resume(&scene, &c).map_err(|e| {
+                CliError::input(format!(
+                    "{}: does not fit the scene {}: {e}",
+                    file.display(),
+                    args.scene.display()
+                ))
+            })?;
+            (sim, c.step)
+        }
     };
+    let last = (scene.end_time / scene.dt).round() as u64;
+    let steps = match args.steps {
+        Some(n) => n,
+        None if args.resume.is_none() || first < last => last.saturating_sub(first),
+        None => {
+            return Err(CliError::input(format!(
+                "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
+                 nothing left to run (--steps N runs N more)",
+                scene.end_time
+            )))
+        }
+    };
+    // Resumed into the directory it was written to, the output goes on in the
+    // same file; a fresh run starts its own.
+    let (mut out, write_first) = match &args.output {
+        Some(dir) if args.resume.is_some() && dir.join("run.h5").exists() => {
+            let (o, current) = Output::append(dir, &sim)?;
+            (Some(o), !current)
+        }
+        Some(dir) => (Some(Output::create(dir, &sim)?), true),
+        None => (None, false),
+    };
+    let checkpoint_path = args.output.as_ref().map(|d| d.join("checkpoint.h5"));
     eprintln!(
         "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps, {} threads",
         args.scene.display(),
@@ -37,7 +67,7 @@ pub fn run(args: &RunArgs) -> CliResult {
         scene.stable_dt.map_or(String::new(), |h| format!(" (stable: {h:.3e} s)")),
         rayon::current_num_threads(),
     );
-    if let Some(o) = &mut out {
+    if let Some(o) = out.as_mut().filter(|_| write_first) {
         o.write_step(&sim)?;
     }
     let bar = ProgressBar::new(steps).with_style(
@@ -68,9 +98,11 @@ pub fn run(args: &RunArgs) -> CliResult {
                     sim.world.time
                 )));
             }
-            if s % scene.output_every == 0 {
-                if let Some(o) = &mut out {
+            // Output steps count from the start of the run, resumed or not.
+            if sim.world.step % scene.output_every == 0 {
+                if let (Some(o), Some(c)) = (&mut out, &checkpoint_path) {
                     o.write_step(&sim)?;
+                    checkpoint_file::write(c, &sim.checkpoint())?;
                 }
             }
             if s % 64 == 0 || s == steps {
@@ -81,6 +113,12 @@ pub fn run(args: &RunArgs) -> CliResult {
     });
     looped?;
     bar.finish_and_clear();
+    // So that a run that ended between output steps can be taken further.
+    if let Some(c) = checkpoint_path.as_ref().filter(|_| steps > 0) {
+        if sim.world.step % scene.output_every != 0 {
+            checkpoint_file::write(c, &sim.checkpoint())?;
+        }
+    }
     let secs = start.elapsed().as_secs_f64();
     if sim.totals.detection.deep_contacts > 0 {
         eprintln!(
@@ -113,6 +151,8 @@ pub fn run(args: &RunArgs) -> CliResult {
         "highest_z": highest,
         "scene": args.scene.display().to_string(),
         "steps": steps,
+        "first_step": first,
+        "last_step": sim.world.step,
         "particles": sim.world.dynamic_count(),
         "threads": rayon::current_num_threads(),
         "seconds": secs,
@@ -161,6 +201,11 @@ pub fn run(args: &RunArgs) -> CliResult {
                 "output                 {}/run.h5 (open {}/run.xmf in ParaView)",
                 dir.display(),
                 dir.display()
+            );
+            println!(
+                "checkpoint             {}/checkpoint.h5 (step {}; go on with --resume)",
+                dir.display(),
+                sim.world.step
             );
         }
     }

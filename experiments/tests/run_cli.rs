@@ -208,3 +208,139 @@ fn scaling_compares_thread_counts_and_their_results() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("no steps to time") && out.is_empty(), "{err}");
 }
+
+/// Every output step's positions and orientations in `dir/run.h5`, by time.
+fn output_steps(dir: &std::path::Path) -> Vec<(f64, Vec<u64>)> {
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let steps = f.group("steps").unwrap();
+    let mut v: Vec<(f64, Vec<u64>)> = (0..steps.member_names().unwrap().len())
+        .map(|k| {
+            let g = steps.group(&k.to_string()).unwrap();
+            let t: f64 = g.attr("time").unwrap().read_scalar().unwrap();
+            let bits = ["positions", "orientations", "velocities"]
+                .iter()
+                .flat_map(|d| {
+                    let a: ndarray::Array2<f64> = g.dataset(d).unwrap().read_2d().unwrap();
+                    a.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+                })
+                .collect();
+            (t, bits)
+        })
+        .collect();
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    v
+}
+
+#[test]
+fn a_run_resumed_from_its_checkpoint_goes_on_in_the_same_file_bit_for_bit() {
+    let base = std::env::temp_dir().join(format!("tridem-resume-{}", std::process::id()));
+    let (whole, parts) = (base.join("whole"), base.join("parts"));
+    let drop = scene("drop.toml");
+    let run = |dir: &std::path::Path, extra: &[&str]| {
+        let mut args = vec!["run", &drop, "--quiet", "--output", dir.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let (code, out, err) = tridem(&args);
+        assert_eq!(code, 0, "{err}");
+        out
+    };
+    // The grains reach the floor at about step 1,200 (output_every = 200).
+    run(&whole, &["--steps", "2300"]);
+    // Stopped between output steps: the run's end is checkpointed too.
+    run(&parts, &["--steps", "1300"]);
+    let checkpoint = parts.join("checkpoint.h5");
+    let c = checkpoint.to_str().unwrap();
+    let springs = hdf5::File::open(&checkpoint)
+        .and_then(|f| f.dataset("effects/friction"))
+        .unwrap()
+        .size();
+    assert!(springs >= 5, "friction springs cross the stop: {springs}");
+    run(&parts, &["--resume", c, "--steps", "600"]);
+    run(&parts, &["--resume", c, "--steps", "400"]);
+    let (a, b) = (output_steps(&whole), output_steps(&parts));
+    // Steps 0, 200, ..., 2200 of both, and the parts' stops at steps 1,300
+    // and 1,900, where each resumed run starts.
+    assert_eq!(a.len(), 12);
+    assert_eq!(b.len(), 14);
+    let stops = [1300.0, 1900.0].map(|s| s * 5e-5);
+    let (stops_found, b): (Vec<_>, Vec<_>) = b
+        .into_iter()
+        .partition(|s| stops.iter().any(|t| (s.0 - t).abs() < 1e-9));
+    assert_eq!(stops_found.len(), 2);
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.0.to_bits(), y.0.to_bits());
+        assert!(x.1 == y.1, "t = {}: the resumed run departs", x.0);
+    }
+    // The last checkpoint is of step 2,300, both ways.
+    let last = |dir: &std::path::Path| {
+        let f = hdf5::File::open(dir.join("checkpoint.h5")).unwrap();
+        let step: u64 = f.attr("step").unwrap().read_scalar().unwrap();
+        let l: ndarray::Array2<f64> = f.dataset("angular_momenta").unwrap().read_2d().unwrap();
+        (step, l.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+    };
+    assert_eq!(last(&whole), last(&parts));
+    assert_eq!(last(&whole).0, 2300);
+    let _ = std::fs::remove_dir_all(base);
+}
+
+#[test]
+fn a_checkpoint_that_does_not_fit_is_an_error_and_nothing_is_lost() {
+    let base = std::env::temp_dir().join(format!("tridem-resume-bad-{}", std::process::id()));
+    let dir = base.join("drop");
+    let d = dir.to_str().unwrap();
+    let drop = scene("drop.toml");
+    let (code, _, err) = tridem(&["run", &drop, "--quiet", "--steps", "400", "--output", d]);
+    assert_eq!(code, 0, "{err}");
+    let checkpoint = dir.join("checkpoint.h5");
+    let c = checkpoint.to_str().unwrap();
+    let before = std::fs::read(dir.join("run.h5")).unwrap();
+
+    let hopper = scene("hopper.toml");
+    let (code, _, err) = tridem(&["run", &hopper, "--resume", c, "--steps", "1"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains(c) && err.contains("another scene") && !err.contains("panicked"),
+        "{err}"
+    );
+    let missing = base.join("none.h5");
+    let (code, _, err) = tridem(&["run", &drop, "--resume", missing.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("none.h5: no such checkpoint file"), "{err}");
+    let not_h5 = base.join("scene-as-checkpoint.h5");
+    std::fs::copy(&drop, &not_h5).unwrap();
+    let (code, _, err) = tridem(&["run", &drop, "--resume", not_h5.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("not an HDF5 file"), "{err}");
+
+    // An older checkpoint resumed into the output of a run that went past
+    // it would interleave two histories: refused, and the file untouched.
+    let old = base.join("step-400.h5");
+    std::fs::copy(&checkpoint, &old).unwrap();
+    let (code, _, err) = tridem(&[
+        "run", &drop, "--quiet", "--resume", c, "--steps", "200", "--output", d,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let after = std::fs::read(dir.join("run.h5")).unwrap();
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--resume",
+        old.to_str().unwrap(),
+        "--steps",
+        "200",
+        "--output",
+        d,
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("after the checkpoint"), "{err}");
+    assert_eq!(std::fs::read(dir.join("run.h5")).unwrap(), after);
+    assert_ne!(before, after);
+    // Nothing left to run: the checkpoint is at the scene's end.
+    let mut end = std::fs::read_to_string(&drop).unwrap();
+    end = end.replace("end_time = 0.4", "end_time = 0.03");
+    let short = base.join("short.toml");
+    std::fs::write(&short, end).unwrap();
+    let (code, _, err) = tridem(&["run", short.to_str().unwrap(), "--resume", c]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("nothing left to run"), "{err}");
+    let _ = std::fs::remove_dir_all(base);
+}
