@@ -10,5 +10,6 @@ cargo build --release -p experiments
 out=${1:-out/hopper}
 echo "main-job: mpirun -np 2 target/release/tridem info"
 mpirun --oversubscribe -np 2 target/release/tridem info
-echo "main-job: target/release/tridem run scenes/hopper.toml --output $out"
-target/release/tridem run scenes/hopper.toml --output "$out"
+echo "main-job: target/release/tridem run scenes/hopper.toml --output $out --overwrite"
+# --overwrite: the main job reproduces the hopper, replacing an earlier run's output.
+target/release/tridem run scenes/hopper.toml --output "$out" --overwrite

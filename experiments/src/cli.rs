@@ -90,6 +90,10 @@ pub struct RunArgs {
     /// goes on in the same file. --steps counts the steps still to run.
     #[arg(long)]
     pub resume: Option<PathBuf>,
+    /// Replace the output of an earlier run in --output DIR (refused otherwise,
+    /// so that no run's output is lost by a repeated command).
+    #[arg(long)]
+    pub overwrite: bool,
     /// Threads (default: all cores).
     #[arg(long, value_parser = at_least_one)]
     pub threads: Option<usize>,

@@ -52,6 +52,14 @@ pub fn run(args: &RunArgs) -> CliResult {
             let (o, current) = Output::append(dir, &sim)?;
             (Some(o), !current)
         }
+        Some(dir) if dir.join("run.h5").exists() && !args.overwrite => {
+            return Err(CliError::input(format!(
+                "{}: holds the output of an earlier run; go on with it with --resume {}, \
+                 write to another directory, or replace it with --overwrite",
+                dir.join("run.h5").display(),
+                dir.join("checkpoint.h5").display()
+            )))
+        }
         Some(dir) => (Some(Output::create(dir, &sim)?), true),
         None => (None, false),
     };

@@ -342,5 +342,25 @@ fn a_checkpoint_that_does_not_fit_is_an_error_and_nothing_is_lost() {
     let (code, _, err) = tridem(&["run", short.to_str().unwrap(), "--resume", c]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("nothing left to run"), "{err}");
+    // A fresh run into the directory would replace it: only when asked to.
+    let (code, _, err) = tridem(&["run", &drop, "--quiet", "--steps", "10", "--output", d]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--overwrite") && err.contains("--resume"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(dir.join("run.h5")).unwrap(), after);
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--quiet",
+        "--steps",
+        "10",
+        "--output",
+        d,
+        "--overwrite",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(output_steps(&dir).len(), 1);
     let _ = std::fs::remove_dir_all(base);
 }
