@@ -8,6 +8,10 @@ use crate::sections::{label, section_rows};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
+use signal_hook::consts::TERM_SIGNALS;
+use signal_hook::flag;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 pub fn run(args: &RunArgs) -> CliResult {
@@ -86,12 +90,20 @@ pub fn run(args: &RunArgs) -> CliResult {
     if args.quiet {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
     }
+    // SIGTERM (a batch system's time limit or preemption) or Ctrl-C ends the
+    // run after the step under way, with a checkpoint; a second one at once.
+    let stop = Arc::new(AtomicBool::new(false));
+    for &signal in TERM_SIGNALS {
+        flag::register_conditional_shutdown(signal, 1, Arc::clone(&stop))
+            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
+            .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
+    }
     let start = Instant::now();
     // The whole loop runs on a worker of the pool, so that parallel sections
     // start from inside it, and the other workers poll instead of sleeping
     // between sections (see dem::busy_workers; measured on the hopper: waking
     // threads took 25-40% of a run on this VM).
-    let looped: CliResult = dem::busy_workers::with_busy_workers(|| {
+    let looped: CliResult<Option<u64>> = dem::busy_workers::with_busy_workers(|| {
         for s in 1..=steps {
             sim.step();
             if sim
@@ -116,10 +128,26 @@ pub fn run(args: &RunArgs) -> CliResult {
             if s % 64 == 0 || s == steps {
                 bar.set_position(s);
             }
+            if stop.load(Ordering::Relaxed) {
+                bar.abandon();
+                return Ok(Some(s));
+            }
         }
-        Ok(())
+        Ok(None)
     });
-    looped?;
+    if let Some(s) = looped? {
+        let resume = match &checkpoint_path {
+            Some(c) => {
+                checkpoint_file::write(c, &sim.checkpoint())?;
+                format!("its state is in {}: go on with --resume", c.display())
+            }
+            None => "no checkpoint without --output".into(),
+        };
+        return Err(CliError::runtime(format!(
+            "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
+            sim.world.step, sim.world.time
+        )));
+    }
     bar.finish_and_clear();
     // So that a run that ended between output steps can be taken further.
     if let Some(c) = checkpoint_path.as_ref().filter(|_| steps > 0) {

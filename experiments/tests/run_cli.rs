@@ -271,14 +271,8 @@ fn a_run_resumed_from_its_checkpoint_goes_on_in_the_same_file_bit_for_bit() {
         assert!(x.1 == y.1, "t = {}: the resumed run departs", x.0);
     }
     // The last checkpoint is of step 2,300, both ways.
-    let last = |dir: &std::path::Path| {
-        let f = hdf5::File::open(dir.join("checkpoint.h5")).unwrap();
-        let step: u64 = f.attr("step").unwrap().read_scalar().unwrap();
-        let l: ndarray::Array2<f64> = f.dataset("angular_momenta").unwrap().read_2d().unwrap();
-        (step, l.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
-    };
-    assert_eq!(last(&whole), last(&parts));
-    assert_eq!(last(&whole).0, 2300);
+    assert_eq!(checkpoint_of(&whole), checkpoint_of(&parts));
+    assert_eq!(checkpoint_of(&whole).0, 2300);
     let _ = std::fs::remove_dir_all(base);
 }
 
@@ -362,5 +356,80 @@ fn a_checkpoint_that_does_not_fit_is_an_error_and_nothing_is_lost() {
     ]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(output_steps(&dir).len(), 1);
+    let _ = std::fs::remove_dir_all(base);
+}
+
+/// The step and every body's angular momentum (as bits) of `dir/checkpoint.h5`.
+fn checkpoint_of(dir: &std::path::Path) -> (u64, Vec<u64>) {
+    let f = hdf5::File::open(dir.join("checkpoint.h5")).unwrap();
+    let step: u64 = f.attr("step").unwrap().read_scalar().unwrap();
+    let l: ndarray::Array2<f64> = f.dataset("angular_momenta").unwrap().read_2d().unwrap();
+    (step, l.iter().map(|x| x.to_bits()).collect())
+}
+
+#[test]
+fn a_run_stopped_by_sigterm_checkpoints_the_step_it_reached() {
+    let base = std::env::temp_dir().join(format!("tridem-sigterm-{}", std::process::id()));
+    let (stopped, whole) = (base.join("stopped"), base.join("whole"));
+    let drop = scene("drop.toml");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(["run", &drop, "--quiet", "--steps", "100000000", "--output"])
+        .arg(&stopped)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The first output step's checkpoint shows the run is under way (the
+    // bound only keeps a broken build from hanging the suite).
+    let first = stopped.join("checkpoint.h5");
+    for _ in 0..6000 {
+        if first.exists() || child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+    assert!(first.exists(), "no checkpoint written");
+    let kill = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("stopped by a signal")
+            && err.contains("--resume")
+            && !err.contains("panicked"),
+        "{err}"
+    );
+    let (step, _) = checkpoint_of(&stopped);
+    assert!(step > 0 && step < 100_000_000, "{step}");
+    // The checkpoint is of the step the run reached, not of the last output
+    // step: going on from it gives the uninterrupted run's state.
+    let c = first.to_str().unwrap();
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--quiet",
+        "--resume",
+        c,
+        "--steps",
+        "150",
+        "--output",
+        stopped.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let total = (step + 150).to_string();
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--quiet",
+        "--steps",
+        &total,
+        "--output",
+        whole.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(checkpoint_of(&stopped), checkpoint_of(&whole));
     let _ = std::fs::remove_dir_all(base);
 }
