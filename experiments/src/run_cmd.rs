@@ -98,6 +98,7 @@ pub fn run(args: &RunArgs) -> CliResult {
             .and_then(|_| flag::register(signal, Arc::clone(&stop)))
             .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
     }
+    let mut checkpoint_secs = 0.0;
     let start = Instant::now();
     // The whole loop runs on a worker of the pool, so that parallel sections
     // start from inside it, and the other workers poll instead of sleeping
@@ -122,7 +123,9 @@ pub fn run(args: &RunArgs) -> CliResult {
             if sim.world.step % scene.output_every == 0 {
                 if let (Some(o), Some(c)) = (&mut out, &checkpoint_path) {
                     o.write_step(&sim)?;
+                    let start = Instant::now();
                     checkpoint_file::write(c, &sim.checkpoint())?;
+                    checkpoint_secs += start.elapsed().as_secs_f64();
                 }
             }
             if s % 64 == 0 || s == steps {
@@ -152,7 +155,9 @@ pub fn run(args: &RunArgs) -> CliResult {
     // So that a run that ended between output steps can be taken further.
     if let Some(c) = checkpoint_path.as_ref().filter(|_| steps > 0) {
         if sim.world.step % scene.output_every != 0 {
+            let start = Instant::now();
             checkpoint_file::write(c, &sim.checkpoint())?;
+            checkpoint_secs += start.elapsed().as_secs_f64();
         }
     }
     let secs = start.elapsed().as_secs_f64();
@@ -180,7 +185,11 @@ pub fn run(args: &RunArgs) -> CliResult {
         section_json.insert(r.key(), r.seconds.into());
     }
     // Output, the finiteness check and the progress bar.
-    section_json.insert("other".into(), (secs - stepping).max(0.0).into());
+    section_json.insert("checkpoints".into(), checkpoint_secs.into());
+    section_json.insert(
+        "other".into(),
+        (secs - stepping - checkpoint_secs).max(0.0).into(),
+    );
     let summary = serde_json::json!({
         "centre_of_mass": [com.x, com.y, com.z],
         "lowest_z": lowest,
@@ -228,7 +237,11 @@ pub fn run(args: &RunArgs) -> CliResult {
         );
         println!("time by section        seconds  share");
         let mut rows: Vec<(String, f64)> = sections.iter().map(|r| (label(r), r.seconds)).collect();
-        rows.push(("output and checks".into(), (secs - stepping).max(0.0)));
+        rows.push(("checkpoints".into(), checkpoint_secs));
+        rows.push((
+            "output and checks".into(),
+            (secs - stepping - checkpoint_secs).max(0.0),
+        ));
         for (name, s) in rows {
             println!("  {name:<20} {s:>8.3}  {:>4.1}%", 100.0 * s / secs);
         }
