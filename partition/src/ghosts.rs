@@ -65,20 +65,19 @@ pub fn ghost_destinations(
         .collect()
 }
 
-/// Sends ghosts (records only; payloads are not needed for contact search).
-pub fn exchange_ghosts(
+/// What this rank sends as ghosts, per destination rank, with the counts
+/// of [`Ghosts`] filled in; and the query error, if any, to return once every
+/// rank has passed the exchange (with nothing sent from this rank).
+fn outgoing(
     comm: &SimpleCommunicator,
     part: &dyn Partitioner,
     local: &LocalItems,
     halo: f64,
-) -> Result<Ghosts, PartitionError> {
+) -> (Vec<Vec<Item>>, Ghosts, Option<PartitionError>) {
     let size = comm.size() as usize;
     let me = comm.rank();
     let reach = global_reach(comm, &local.items);
-    // Every rank must reach the exchange below, so a query error is only
-    // returned after it (with nothing sent from this rank).
-    let dests = ghost_destinations(part, me, &local.items, halo, reach);
-    let (dests, error) = match dests {
+    let (dests, error) = match ghost_destinations(part, me, &local.items, halo, reach) {
         Ok(d) => (d, None),
         Err(e) => (vec![Vec::new(); local.items.len()], Some(e)),
     };
@@ -94,6 +93,17 @@ pub fn exchange_ghosts(
     g.neighbours = (0..size as i32)
         .filter(|&r| !per_rank[r as usize].is_empty())
         .collect();
+    (per_rank, g, error)
+}
+
+/// Sends ghosts (records only; payloads are not needed for contact search).
+pub fn exchange_ghosts(
+    comm: &SimpleCommunicator,
+    part: &dyn Partitioner,
+    local: &LocalItems,
+    halo: f64,
+) -> Result<Ghosts, PartitionError> {
+    let (per_rank, mut g, error) = outgoing(comm, part, local, halo);
     let counts: Vec<Count> = per_rank.iter().map(|v| v.len() as Count).collect();
     let send: Vec<Item> = per_rank.into_iter().flatten().collect();
     let (received, _) = all_to_all_v(comm, &send, &counts);
@@ -101,5 +111,71 @@ pub fn exchange_ghosts(
     match error {
         Some(e) => Err(e),
         None => Ok(g),
+    }
+}
+
+/// Tag of the ghost messages of [`exchange_ghosts_during`].
+const GHOST_TAG: i32 = 0x6705;
+
+/// Sends ghosts as [`exchange_ghosts`] does, but with non-blocking
+/// point-to-point messages to and from the neighbour ranks only, and runs
+/// `work` (the contacts among owned items, which need no ghosts) while they
+/// are in flight. Returns the ghosts, in the same order as
+/// [`exchange_ghosts`], and what `work` returned.
+///
+/// The counts go first, in a blocking all-to-all of one integer per rank:
+/// receive buffers must be sized before receives are posted. The requests
+/// live in an rsmpi scope, which ends only once each has completed, so no
+/// buffer can be freed or read while MPI still writes it. Without an MPI
+/// progress thread, a message larger than the eager limit may advance only
+/// in the final wait; the overlap gained is what `tridem partition`
+/// measures, not what this function promises.
+pub fn exchange_ghosts_during<R>(
+    comm: &SimpleCommunicator,
+    part: &dyn Partitioner,
+    local: &LocalItems,
+    halo: f64,
+    work: impl FnOnce() -> R,
+) -> Result<(Ghosts, R), PartitionError> {
+    let (per_rank, mut g, error) = outgoing(comm, part, local, halo);
+    let counts: Vec<Count> = per_rank.iter().map(|v| v.len() as Count).collect();
+    let mut recv_counts = vec![0 as Count; counts.len()];
+    comm.all_to_all_into(&counts[..], &mut recv_counts[..]);
+    let mut inbox: Vec<Vec<Item>> = recv_counts
+        .iter()
+        .map(|&c| vec![Item::default(); c as usize])
+        .collect();
+    let out = mpi::request::scope(|scope| {
+        let receives: Vec<_> = inbox
+            .iter_mut()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty())
+            .map(|(r, b)| {
+                comm.process_at_rank(r as i32)
+                    .immediate_receive_into_with_tag(scope, &mut b[..], GHOST_TAG)
+            })
+            .collect();
+        let sends: Vec<_> = per_rank
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty())
+            .map(|(r, b)| {
+                comm.process_at_rank(r as i32)
+                    .immediate_send_with_tag(scope, &b[..], GHOST_TAG)
+            })
+            .collect();
+        let out = work();
+        receives.into_iter().for_each(|r| {
+            r.wait();
+        });
+        sends.into_iter().for_each(|r| {
+            r.wait();
+        });
+        out
+    });
+    g.received = inbox.into_iter().flatten().collect();
+    match error {
+        Some(e) => Err(e),
+        None => Ok((g, out)),
     }
 }

@@ -70,6 +70,11 @@ fn every_backend_on_1_to_4_ranks() {
                     0,
                     "{ctx}: ghost completeness"
                 );
+                assert_eq!(
+                    rep.value("overlapped_ghosts_equal"),
+                    Some("true"),
+                    "{ctx}: non-blocking ghost exchange"
+                );
             }
             if backend == "zoltan-rcb" {
                 for rep in &r.reports {
@@ -105,6 +110,12 @@ fn blobs_keep_items_and_ghosts() {
         for rep in &r.reports {
             assert_eq!(rep.parse::<u64>("ghosts_missing"), 0, "{backend}");
             assert_eq!(rep.parse::<u64>("owner_mismatch"), 0, "{backend}");
+            assert_eq!(
+                rep.value("overlapped_ghosts_equal"),
+                Some("true"),
+                "{backend}"
+            );
+            assert!(rep.parse::<u64>("owned_pairs") > 0, "{backend}: work ran");
         }
     }
 }
