@@ -106,6 +106,12 @@ fn partition_json_on_two_ranks_has_the_documented_fields() {
             ] {
                 assert!(!r[k].is_null(), "{k} missing in {r}");
             }
+            // The ghost exchange, the owned items' contact candidates, and
+            // both overlapped, each timed on the slowest rank.
+            for k in ["ghost_exchange_s", "owned_pairs_s", "overlapped_s"] {
+                assert!(r[k].as_f64().is_some_and(|t| t > 0.0), "{k} in {r}");
+            }
+            assert!(r["owned_pairs"].as_u64().unwrap() > 0, "{r}");
             assert_eq!(r["items"], 5000);
             assert_eq!(r["ranks"], 2);
             assert_eq!(r["partitioner"], partitioner);
