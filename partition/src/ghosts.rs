@@ -44,27 +44,6 @@ pub fn global_reach(comm: &SimpleCommunicator, items: &[Item]) -> f64 {
     global
 }
 
-/// For each local item, the other ranks that need it as a ghost.
-pub fn ghost_destinations(
-    part: &dyn Partitioner,
-    me: i32,
-    items: &[Item],
-    halo: f64,
-    reach: f64,
-) -> Result<Vec<Vec<i32>>, PartitionError> {
-    let mut buf = Vec::new();
-    items
-        .iter()
-        .map(|it| {
-            buf.clear();
-            part.ranks_overlapping(&it.bbox.inflated(2.0 * halo + reach), &mut buf)?;
-            buf.sort_unstable();
-            buf.dedup();
-            Ok(buf.iter().copied().filter(|&r| r != me).collect())
-        })
-        .collect()
-}
-
 /// What this rank sends as ghosts, per destination rank, with the counts
 /// of [`Ghosts`] filled in; and the query error, if any, to return once every
 /// rank has passed the exchange (with nothing sent from this rank).
@@ -77,14 +56,20 @@ fn outgoing(
     let size = comm.size() as usize;
     let me = comm.rank();
     let reach = global_reach(comm, &local.items);
-    let (dests, error) = match ghost_destinations(part, me, &local.items, halo, reach) {
-        Ok(d) => (d, None),
-        Err(e) => (vec![Vec::new(); local.items.len()], Some(e)),
-    };
     let mut per_rank: Vec<Vec<Item>> = vec![Vec::new(); size];
     let mut g = Ghosts::default();
-    for (it, ds) in local.items.iter().zip(&dests) {
-        for &r in ds {
+    // One query buffer for all items, filled straight into the per-rank
+    // lists: most items go nowhere, and a list per item cost an allocation each.
+    let mut ranks = Vec::new();
+    for it in &local.items {
+        ranks.clear();
+        let reached = it.bbox.inflated(2.0 * halo + reach);
+        if let Err(e) = part.ranks_overlapping(&reached, &mut ranks) {
+            return (vec![Vec::new(); size], Ghosts::default(), Some(e));
+        }
+        ranks.sort_unstable();
+        ranks.dedup();
+        for &r in ranks.iter().filter(|&&r| r != me) {
             per_rank[r as usize].push(*it);
             g.items_sent += 1;
             g.bytes_sent += it.wire_bytes();
@@ -93,7 +78,7 @@ fn outgoing(
     g.neighbours = (0..size as i32)
         .filter(|&r| !per_rank[r as usize].is_empty())
         .collect();
-    (per_rank, g, error)
+    (per_rank, g, None)
 }
 
 /// Sends ghosts (records only; payloads are not needed for contact search).
