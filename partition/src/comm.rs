@@ -33,8 +33,11 @@ where
     let sdispl = displacements(send_counts);
     let rdispl = displacements(&recv_counts);
     {
-        let s = Partition::new(send, send_counts, &sdispl[..]);
-        let mut r = PartitionMut::new(&mut recv[..], &recv_counts[..], &rdispl[..]);
+        let one = [T::default()];
+        let s = Partition::new(never_empty(send, &one), send_counts, &sdispl[..]);
+        let mut spare = [T::default()];
+        let r = never_empty_mut(&mut recv, &mut spare);
+        let mut r = PartitionMut::new(r, &recv_counts[..], &rdispl[..]);
         comm.all_to_all_varcount_into(&s, &mut r);
     }
     (recv, recv_counts)
@@ -53,10 +56,35 @@ where
     let mut recv = vec![T::default(); total as usize];
     let displs = displacements(&counts);
     {
-        let mut r = PartitionMut::new(&mut recv[..], &counts[..], &displs[..]);
+        let one = [T::default()];
+        // Sends send.len() elements, as the counts say, even from the spare.
+        let send = &never_empty(send, &one)[..send.len()];
+        let mut spare = [T::default()];
+        let r = never_empty_mut(&mut recv, &mut spare);
+        let mut r = PartitionMut::new(r, &counts[..], &displs[..]);
         comm.all_gather_varcount_into(send, &mut r);
     }
     recv
+}
+
+/// `buf`, or when it is empty, `spare` (whose counts stay zero). An empty
+/// slice's pointer is dangling, and for a one-byte type it is 0x1: Open MPI's
+/// `MPI_IN_PLACE`. A rank that sends or receives no bytes would then ask for
+/// an in-place exchange (MPI_ERR_ARG, or its receive buffer read as data).
+fn never_empty<'a, T>(buf: &'a [T], spare: &'a [T; 1]) -> &'a [T] {
+    if buf.is_empty() {
+        spare
+    } else {
+        buf
+    }
+}
+
+fn never_empty_mut<'a, T>(buf: &'a mut [T], spare: &'a mut [T; 1]) -> &'a mut [T] {
+    if buf.is_empty() {
+        spare
+    } else {
+        buf
+    }
 }
 
 #[cfg(test)]

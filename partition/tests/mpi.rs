@@ -164,3 +164,28 @@ fn repartition_after_small_move_migrates_few() {
         );
     }
 }
+
+/// Byte exchanges in which some ranks send or receive nothing: an empty
+/// byte buffer's dangling pointer is Open MPI's MPI_IN_PLACE, which once made
+/// a migration abort (found when METIS gave every item to one rank).
+#[test]
+fn varcount_exchanges_of_bytes_with_empty_ranks() {
+    for ranks in [1, 2, 3] {
+        let r = MpiRun::new(example_binary("comm_check"))
+            .ranks(ranks)
+            .run()
+            .unwrap_or_else(|e| panic!("{ranks} ranks: {e}"));
+        for rep in &r.reports {
+            assert_eq!(
+                rep.value("all_to_all_v_bytes_ok"),
+                Some("true"),
+                "{ranks} ranks"
+            );
+            assert_eq!(
+                rep.value("all_gather_v_bytes_ok"),
+                Some("true"),
+                "{ranks} ranks"
+            );
+        }
+    }
+}
