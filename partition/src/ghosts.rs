@@ -44,24 +44,25 @@ pub fn global_reach(comm: &SimpleCommunicator, items: &[Item]) -> f64 {
     global
 }
 
-/// What this rank sends as ghosts, per destination rank, with the counts
-/// of [`Ghosts`] filled in; and the query error, if any, to return once every
-/// rank has passed the exchange (with nothing sent from this rank).
+/// Which local items this rank sends as ghosts, as indices per destination
+/// rank, with the counts of [`Ghosts`] filled in; and the query error, if
+/// any, to return once every rank has passed the exchange (with nothing sent
+/// from this rank).
 fn outgoing(
     comm: &SimpleCommunicator,
     part: &dyn Partitioner,
     local: &LocalItems,
     halo: f64,
-) -> (Vec<Vec<Item>>, Ghosts, Option<PartitionError>) {
+) -> (Vec<Vec<usize>>, Ghosts, Option<PartitionError>) {
     let size = comm.size() as usize;
     let me = comm.rank();
     let reach = global_reach(comm, &local.items);
-    let mut per_rank: Vec<Vec<Item>> = vec![Vec::new(); size];
+    let mut per_rank: Vec<Vec<usize>> = vec![Vec::new(); size];
     let mut g = Ghosts::default();
     // One query buffer for all items, filled straight into the per-rank
     // lists: most items go nowhere, and a list per item cost an allocation each.
     let mut ranks = Vec::new();
-    for it in &local.items {
+    for (i, it) in local.items.iter().enumerate() {
         ranks.clear();
         let reached = it.bbox.inflated(2.0 * halo + reach);
         if let Err(e) = part.ranks_overlapping(&reached, &mut ranks) {
@@ -70,7 +71,7 @@ fn outgoing(
         ranks.sort_unstable();
         ranks.dedup();
         for &r in ranks.iter().filter(|&&r| r != me) {
-            per_rank[r as usize].push(*it);
+            per_rank[r as usize].push(i);
             g.items_sent += 1;
             g.bytes_sent += it.wire_bytes();
         }
@@ -90,7 +91,7 @@ pub fn exchange_ghosts(
 ) -> Result<Ghosts, PartitionError> {
     let (per_rank, mut g, error) = outgoing(comm, part, local, halo);
     let counts: Vec<Count> = per_rank.iter().map(|v| v.len() as Count).collect();
-    let send: Vec<Item> = per_rank.into_iter().flatten().collect();
+    let send: Vec<Item> = per_rank.iter().flatten().map(|&i| local.items[i]).collect();
     let (received, _) = all_to_all_v(comm, &send, &counts);
     g.received = received;
     match error {
@@ -122,13 +123,38 @@ pub fn exchange_ghosts_during<R>(
     halo: f64,
     work: impl FnOnce() -> R,
 ) -> Result<(Ghosts, R), PartitionError> {
-    let (per_rank, mut g, error) = outgoing(comm, part, local, halo);
-    let counts: Vec<Count> = per_rank.iter().map(|v| v.len() as Count).collect();
+    let (mut g, received, out) =
+        exchange_ghost_records_during(comm, part, local, halo, |i| local.items[i], work)?;
+    g.received = received;
+    Ok((g, out))
+}
+
+/// As [`exchange_ghosts_during`], but what travels for a ghost is
+/// `record(i)` of local item i, whatever the caller needs of it on the other
+/// rank (a triangle's vertices, say), rather than the item. Returns the
+/// records received, in rank order (`Ghosts::received` stays empty).
+pub fn exchange_ghost_records_during<T, R>(
+    comm: &SimpleCommunicator,
+    part: &dyn Partitioner,
+    local: &LocalItems,
+    halo: f64,
+    record: impl Fn(usize) -> T,
+    work: impl FnOnce() -> R,
+) -> Result<(Ghosts, Vec<T>, R), PartitionError>
+where
+    T: Equivalence + Clone + Default,
+{
+    let (per_rank, g, error) = outgoing(comm, part, local, halo);
+    let outbox: Vec<Vec<T>> = per_rank
+        .iter()
+        .map(|ids| ids.iter().map(|&i| record(i)).collect())
+        .collect();
+    let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
     let mut recv_counts = vec![0 as Count; counts.len()];
     comm.all_to_all_into(&counts[..], &mut recv_counts[..]);
-    let mut inbox: Vec<Vec<Item>> = recv_counts
+    let mut inbox: Vec<Vec<T>> = recv_counts
         .iter()
-        .map(|&c| vec![Item::default(); c as usize])
+        .map(|&c| vec![T::default(); c as usize])
         .collect();
     let out = mpi::request::scope(|scope| {
         let receives: Vec<_> = inbox
@@ -140,7 +166,7 @@ pub fn exchange_ghosts_during<R>(
                     .immediate_receive_into_with_tag(scope, &mut b[..], GHOST_TAG)
             })
             .collect();
-        let sends: Vec<_> = per_rank
+        let sends: Vec<_> = outbox
             .iter()
             .enumerate()
             .filter(|(_, b)| !b.is_empty())
@@ -158,9 +184,8 @@ pub fn exchange_ghosts_during<R>(
         });
         out
     });
-    g.received = inbox.into_iter().flatten().collect();
     match error {
         Some(e) => Err(e),
-        None => Ok((g, out)),
+        None => Ok((g, inbox.into_iter().flatten().collect(), out)),
     }
 }
