@@ -2,8 +2,9 @@
 //! triangles split across real MPI ranks, as a distributed step would do it.
 //!
 //! Every rank steps the hopper scene to a state with contacts (the same bits
-//! on every rank), then deals its triangles out, lets a partitioner place them
-//! by centroid, and migrates them with their vertices as payload. Each rank
+//! on every rank), then deals the particles' triangles out, lets a
+//! partitioner place them by centroid, and migrates them with their vertices
+//! as payload; the obstacles' triangles are held by every rank. Each rank
 //! finds the contacts among its owned triangles while the ghost triangles
 //! (vertices included) are in flight, then those between owned and ghost
 //! triangles. The union over ranks is compared, on every rank, with what one
@@ -86,12 +87,24 @@ fn main() {
         ..Options::default()
     };
 
-    // Dealt out by position, then placed by the partitioner; each triangle's
-    // box is inflated by its body's halo, so that boxes overlap exactly when
-    // the triangles may touch.
+    // The obstacles (floor, hopper walls) do not move: every rank holds all
+    // of their triangles as owned, and only the particles' are partitioned.
+    // Obstacle pairs are never examined, and a particle-obstacle pair is
+    // found on the rank owning the particle's triangle, so once. As items, a
+    // wall spanning the scene would give every particle triangle the wall's
+    // reach, and every rank would get every other rank's triangles as ghosts.
+    let is_static = |i: usize| world.bodies[all.key(i).body as usize].is_static();
+    let obstacles: Vec<(TriangleKey, Triangle)> = (0..all.len())
+        .filter(|&i| is_static(i))
+        .map(|i| (all.key(i), all.triangle(i).vertices))
+        .collect();
+    // Particle triangles are dealt out by position, then placed by the
+    // partitioner; each triangle's box is inflated by its body's halo, so
+    // that boxes overlap exactly when the triangles may touch.
     let mut items = Vec::new();
     let mut payload = Vec::new();
-    for i in (0..all.len()).filter(|i| i % size as usize == me as usize) {
+    let particles = (0..all.len()).filter(|&i| !is_static(i));
+    for i in particles.filter(|i| i % size as usize == me as usize) {
         let (key, t) = (all.key(i), all.triangle(i).vertices);
         assert!(key.body < 1 << 16 && key.index < 1 << 16, "{key:?}");
         let b = Bounds::of(&t, halos[key.body as usize]);
@@ -131,6 +144,7 @@ fn main() {
         .iter()
         .zip(&vertices)
         .map(|(it, t)| (key(it), *t))
+        .chain(obstacles)
         .collect();
     let mut set = TriangleSet::with_owned(owned, &halos);
     let mut detector = Detector::default();
@@ -164,7 +178,7 @@ fn main() {
     out.kv("ghosts_sent", sent.items_sent);
     set.set_ghosts(ghosts, &halos);
     detector.triangle_contacts(world, &set, &halos, &opts, Phase::LocalGhost, &mut contacts);
-    out.kv("owned_triangles", local.len());
+    out.kv("owned_particle_triangles", local.len());
     out.kv("local_local_contacts", local_local);
     out.kv("local_ghost_contacts", contacts.len() - local_local);
 
