@@ -1,4 +1,4 @@
-//! Brute force on every hard case of ../shared/cases/triangle-pairs.csv.
+//! Brute force on every hard case of dem/tests/data/triangle-pairs.csv.
 mod common;
 
 use dem::distance::distance_triangle_triangle;

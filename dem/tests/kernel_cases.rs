@@ -1,4 +1,4 @@
-//! Penalty and hybrid on every hard case of ../shared/cases/triangle-pairs.csv.
+//! Penalty and hybrid on every hard case of dem/tests/data/triangle-pairs.csv.
 mod common;
 
 use dem::distance::{distances, pair_scale, Fallback, Method, Options, Triangle};

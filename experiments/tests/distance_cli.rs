@@ -27,15 +27,15 @@ fn tridem(args: &[&str], stdin: &str) -> (i32, String, String) {
 fn cases_file() -> String {
     concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/cases/triangle-pairs.csv"
+        "/../dem/tests/data/triangle-pairs.csv"
     )
     .to_string()
 }
 
-/// The shared cases carry a 19th column (the reference): it is ignored as input
+/// The hard cases carry a 19th column (the reference): it is ignored as input
 /// and used here to check every output line.
 #[test]
-fn distance_of_the_shared_cases_matches_their_references() {
+fn distance_of_the_hard_cases_matches_their_references() {
     let text = std::fs::read_to_string(cases_file()).unwrap();
     let rows: Vec<Vec<f64>> = text
         .lines()

@@ -1,4 +1,4 @@
-//! Shared by the integration tests: the hard cases of ../shared/cases.
+//! Shared by the integration tests: the hard triangle pairs of `tests/data/triangle-pairs.csv`.
 #![allow(dead_code)]
 
 mod exact;
@@ -16,12 +16,13 @@ pub struct Case {
     pub reference: f64,
 }
 
-/// Where the shared hard cases live: `$TRIDEM_CASES` or `../shared/cases` next to the checkout.
+/// Where the hard cases live: `$TRIDEM_CASES` (another file of the same
+/// format), or the copy the repository carries in `dem/tests/data/`.
 pub fn cases_path() -> PathBuf {
     if let Ok(p) = std::env::var("TRIDEM_CASES") {
         return PathBuf::from(p);
     }
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/cases/triangle-pairs.csv")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/triangle-pairs.csv")
 }
 
 pub fn load_cases() -> Vec<Case> {
