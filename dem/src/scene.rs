@@ -37,7 +37,9 @@
 use crate::body::Body;
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
 use crate::material::{damping_ratio, Material};
-use crate::mesh::{box_mesh, load_mesh, sphere_hull, tetrahedron, MassProperties, TriMesh};
+use crate::mesh::{
+    box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, MassProperties, TriMesh,
+};
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use rand::{Rng, SeedableRng};
@@ -159,6 +161,9 @@ struct KernelSpec {
 /// no more pairs; 8 leaves room above what was measured and keeps a typo
 /// from turning every uncertified batch into a long loop.
 const MAX_ITERATIONS: usize = 255;
+/// A box subdivided 6 times has 49,152 triangles: enough for any test of
+/// mesh independence, and a typo cannot ask for billions.
+const MAX_SUBDIVIDE: usize = 6;
 const MAX_FINISH_ROUNDS: usize = 8;
 
 fn default_grain() -> usize {
@@ -198,6 +203,10 @@ enum ShapeSpec {
     },
     Box {
         size: [f64; 3],
+        /// Each triangle split into four this many times: the same box with
+        /// more triangles (for checking that results do not depend on the mesh).
+        #[serde(default)]
+        subdivide: usize,
     },
     Tetrahedron {
         radius: f64,
@@ -741,11 +750,19 @@ fn make_shape(
             }
             Ok(sphere_hull(*triangles, r, *seed))
         }
-        ShapeSpec::Box { size } => {
+        ShapeSpec::Box { size, subdivide } => {
             for (k, &x) in size.iter().enumerate() {
                 positive(ctx, span.clone(), &format!("shape.size[{k}]"), x)?;
             }
-            Ok(box_mesh(DVec3::from_array(*size)))
+            if *subdivide > MAX_SUBDIVIDE {
+                return ctx.err(
+                    span,
+                    format!(
+                        "shape.subdivide must be between 0 and {MAX_SUBDIVIDE}, got {subdivide}"
+                    ),
+                );
+            }
+            Ok(subdivided(&box_mesh(DVec3::from_array(*size)), *subdivide))
         }
         ShapeSpec::Tetrahedron { radius } => {
             Ok(tetrahedron(positive(ctx, span, "shape.radius", *radius)?))

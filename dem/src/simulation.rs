@@ -9,6 +9,7 @@ use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
 use crate::timing::{seconds_since, SectionTimes};
 use crate::world::World;
+use glam::DVec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
@@ -19,6 +20,33 @@ const INTEGRATION_GRAIN: usize = 32;
 /// body, so a scene of fewer bodies keeps it on one thread (cheaper than
 /// handing half to another).
 const KICK_GRAIN: usize = 1024;
+
+/// Where a run's energy is (J).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Energies {
+    /// Kinetic energy of the particles' translation and rotation.
+    pub translation: f64,
+    pub rotation: f64,
+    /// Per effect, in pipeline order: what it stores now (gravity's
+    /// potential, the springs) and what it has dissipated since the start.
+    pub effects: Vec<EffectEnergy>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectEnergy {
+    pub effect: &'static str,
+    pub stored: f64,
+    pub dissipated: f64,
+}
+
+impl Energies {
+    /// Kinetic plus stored plus dissipated: constant up to the integrator's
+    /// error when the effects' books are right.
+    pub fn total(&self) -> f64 {
+        let effects: f64 = self.effects.iter().map(|e| e.stored + e.dissipated).sum();
+        self.translation + self.rotation + effects
+    }
+}
 
 /// A running simulation.
 pub struct Simulation {
@@ -180,13 +208,18 @@ impl Simulation {
                 &world,
                 scene.kernel,
                 scene.effects.contact_skin,
+                scene.effects.rotation,
             )));
         }
         if scene.effects.friction {
             effects.push(Box::new(FrictionEffect::new(&world)));
         }
         if let Some((linear, angular)) = scene.effects.damping {
-            effects.push(Box::new(DampingEffect { linear, angular }));
+            effects.push(Box::new(DampingEffect {
+                linear,
+                angular,
+                dissipated: 0.0,
+            }));
         }
         let shape_radius = world
             .shapes
@@ -293,6 +326,36 @@ impl Simulation {
                 .sum::<f64>()
     }
 
+    /// Where the run's energy is: kinetic, stored by each effect, and
+    /// dissipated by each effect since the start.
+    pub fn energies(&self) -> Energies {
+        let (mut translation, mut rotation) = (0.0, 0.0);
+        for b in self.world.bodies.iter().filter(|b| !b.is_static()) {
+            translation += 0.5 * b.mass * b.v.length_squared();
+            rotation += 0.5 * b.l.dot(b.omega());
+        }
+        let effects = self.effects.iter().map(|e| EffectEnergy {
+            effect: e.name(),
+            stored: e.potential_energy(&self.world, &self.ctx),
+            dissipated: e.dissipated(),
+        });
+        Energies {
+            translation,
+            rotation,
+            effects: effects.collect(),
+        }
+    }
+
+    /// Each contact of the last force evaluation: its point and the force
+    /// on its body a (normal and tangential; b takes the opposite).
+    pub fn contact_forces(&self) -> impl Iterator<Item = (&crate::contact::Contact, DVec3)> {
+        self.ctx
+            .contacts
+            .iter()
+            .zip(&self.ctx.contact_force)
+            .map(|(c, f)| (c, *f))
+    }
+
     /// Contacts of the last force evaluation, per body.
     pub fn contact_counts(&self) -> Vec<u32> {
         let mut c = vec![0u32; self.world.bodies.len()];
@@ -301,6 +364,11 @@ impl Simulation {
             c[k.b] += 1;
         }
         c
+    }
+
+    /// The contacts of the last force evaluation.
+    pub fn contacts(&self) -> &[crate::contact::Contact] {
+        &self.ctx.contacts
     }
 
     /// Statistics of the last step.

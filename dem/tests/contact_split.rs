@@ -6,6 +6,7 @@ use dem::contact::{
     body_contacts, Bounds, Contact, Detector, Phase, TriangleContact, TriangleKey, TriangleSet,
 };
 use dem::distance::{Method, Options, Triangle};
+use dem::mesh::Features;
 use dem::scene::Scene;
 use dem::world::World;
 use std::collections::BTreeMap;
@@ -51,6 +52,11 @@ position = [0.0, 0.0, -0.005]
     }
     let halos = scene.world.per_body(|m| m.halo);
     (scene.world, halos)
+}
+
+/// The features of every shape of the world.
+fn features(world: &World) -> Vec<Features> {
+    world.shapes.iter().map(Features::of).collect()
 }
 
 /// All triangles of the world by key.
@@ -164,8 +170,8 @@ fn split_detection_finds_the_one_node_contacts_exactly_once() {
         let mut b: Vec<TriangleContact> = split.values().rev().copied().collect();
         let (mut ca, mut cb): (Vec<Contact>, Vec<Contact>) = (Vec::new(), Vec::new());
         assert_eq!(
-            body_contacts(&mut a, &halos, &mut ca),
-            body_contacts(&mut b, &halos, &mut cb)
+            body_contacts(&mut a, &world, &features(&world), &halos, &mut ca),
+            body_contacts(&mut b, &world, &features(&world), &halos, &mut cb)
         );
         assert_eq!(ca, cb);
     }
@@ -198,10 +204,11 @@ fn split_detection_with_the_hybrid_kernel_agrees_to_its_tolerance() {
 fn the_simulation_detector_matches_the_phase_api() {
     let (world, halos) = dense_world();
     let mut contacts = Vec::new();
-    let stats = Detector::default().detect(&world, &halos, &brute(), &mut contacts);
+    let stats =
+        Detector::default().detect(&world, &features(&world), &halos, &brute(), &mut contacts);
     let mut found = one_node(&world, &halos, &brute());
     let mut expected = Vec::new();
-    let (n, deep) = body_contacts(&mut found, &halos, &mut expected);
+    let (n, deep) = body_contacts(&mut found, &world, &features(&world), &halos, &mut expected);
     assert_eq!(contacts, expected);
     assert_eq!((stats.contacts, stats.deep_contacts), (n, deep));
     assert!(deep > 0, "the bottom layer cuts into the floor");
@@ -235,10 +242,10 @@ fn keeps_up(mut detector: Detector, context: &str) {
     let (mut world, halos) = dense_world();
     for step in 0..6 {
         let mut contacts = Vec::new();
-        detector.detect(&world, &halos, &brute(), &mut contacts);
+        detector.detect(&world, &features(&world), &halos, &brute(), &mut contacts);
         let mut found = one_node(&world, &halos, &brute());
         let mut expected = Vec::new();
-        body_contacts(&mut found, &halos, &mut expected);
+        body_contacts(&mut found, &world, &features(&world), &halos, &mut expected);
         assert_eq!(contacts, expected, "{context}, step {step}");
         // Spread the pile out and turn every other particle: after a few
         // steps most pairs separate, so their bodies go unfilled; then the

@@ -226,5 +226,22 @@ fn obj_and_stl_meshes_load_and_bad_ones_name_the_file() {
     std::fs::write(&p2, open).unwrap();
     let e = dem::mesh::load_mesh(&p2).unwrap_err().to_string();
     assert!(e.contains("open.obj") && e.contains("open"), "{e}");
+    // Coordinates are read in double precision: a 1 cm cube 100 km from
+    // the origin keeps its size to 1e-10 m (single precision would make it
+    // 1.56 cm wide).
+    let far = box_mesh(DVec3::splat(0.01)).translated(DVec3::splat(1e5));
+    let mut obj = String::new();
+    for v in &far.vertices {
+        obj.push_str(&format!("v {:?} {:?} {:?}\n", v.x, v.y, v.z));
+    }
+    for t in &far.triangles {
+        obj.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    }
+    let p3 = dir.join("far.obj");
+    std::fs::write(&p3, &obj).unwrap();
+    let (lo, hi) = dem::mesh::load_mesh(&p3).unwrap().bounds();
+    for k in 0..3 {
+        assert!((hi[k] - lo[k] - 0.01).abs() < 1e-10, "{lo} .. {hi}");
+    }
     let _ = std::fs::remove_dir_all(dir);
 }

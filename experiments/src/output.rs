@@ -5,8 +5,17 @@
 //! - `/shapes/<s>/vertices` (V×3, body frame) and `/shapes/<s>/triangles` (T×3)
 //! - `/steps/<k>/{positions, velocities, angular_momenta} (N×3), orientations (N×4, xyzw),
 //!   contacts (N), time (attribute)`
+//! - `/steps/<k>/energy`: attributes `kinetic_translation`, `kinetic_rotation`, and per
+//!   effect `<effect>_stored` (gravity's potential, springs) and `<effect>_dissipated`
+//!   (work of dashpots, sliding and damping since the start), in J: their sum is constant
+//!   up to the integrator's error.
+//! - `/steps/<k>/contact_forces/{points (C×3), forces (C×3), bodies (C×2)}`: each contact's
+//!   point, the force on its first body (the second takes the opposite), and the bodies.
 //! - `/steps/<k>/surface/{points (3T×3), triangles (T×3), body (T)}`: the world-space
-//!   surface of all bodies, which the XDMF file `DIR/run.xmf` shows as a time series.
+//!   surface of all bodies.
+//!
+//! The XDMF file `DIR/run.xmf` shows the surfaces and the contact forces (points with a
+//! `force` vector: glyphs in ParaView show the force chains) as time series.
 //!
 //! Each step is written and flushed as it is produced, so a run stopped early
 //! keeps everything written before; a run resumed from a checkpoint goes on
@@ -21,7 +30,17 @@ use std::path::{Path, PathBuf};
 pub struct Output {
     file: hdf5::File,
     dir: PathBuf,
-    steps: Vec<(usize, f64, usize, usize)>,
+    steps: Vec<StepIndex>,
+}
+
+/// What the XDMF index needs of an output step.
+#[derive(Debug, Clone, Copy)]
+struct StepIndex {
+    k: usize,
+    time: f64,
+    triangles: usize,
+    bodies: usize,
+    contacts: usize,
 }
 
 fn h5err(e: hdf5::Error) -> CliError {
@@ -78,27 +97,36 @@ impl Output {
             let time: f64 = g.attr("time").and_then(|a| a.read_scalar()).map_err(step)?;
             let n = g.dataset("positions").map_err(step)?.shape()[0];
             let nt = g.dataset("surface/body").map_err(step)?.size();
-            steps.push((k, time, nt, n));
+            let nc = g
+                .dataset("contact_forces/bodies")
+                .map_or(0, |d| d.shape()[0]);
+            steps.push(StepIndex {
+                k,
+                time,
+                triangles: nt,
+                bodies: n,
+                contacts: nc,
+            });
         }
-        steps.sort_by_key(|s| s.0);
-        if steps.iter().enumerate().any(|(i, s)| s.0 != i) {
+        steps.sort_by_key(|s| s.k);
+        if steps.iter().enumerate().any(|(i, s)| s.k != i) {
             return Err(fail("output steps are not numbered 0, 1, 2, ...".into()));
         }
         let (time, n) = (sim.world.time, sim.world.bodies.len());
-        if let Some(s) = steps.iter().find(|s| s.3 != n) {
+        if let Some(s) = steps.iter().find(|s| s.bodies != n) {
             return Err(fail(format!(
                 "output step {} has {} bodies, the resumed run {n}",
-                s.0, s.3
+                s.k, s.bodies
             )));
         }
-        if let Some(s) = steps.iter().find(|s| s.1 > time) {
+        if let Some(s) = steps.iter().find(|s| s.time > time) {
             return Err(fail(format!(
                 "holds output step {} at t = {:e} s, after the checkpoint's t = {time:e} s; \
                  write the resumed run to another directory",
-                s.0, s.1
+                s.k, s.time
             )));
         }
-        let current = steps.last().is_some_and(|s| s.1 == time);
+        let current = steps.last().is_some_and(|s| s.time == time);
         let out = Output {
             file,
             dir: dir.to_path_buf(),
@@ -174,8 +202,16 @@ impl Output {
             .with_data(&Array1::from(body))
             .create("body")
             .map_err(h5err)?;
+        write_energies(&g, sim)?;
+        let nc = write_contacts(&g, sim)?;
         self.file.flush().map_err(h5err)?;
-        self.steps.push((k, w.time, nt, n));
+        self.steps.push(StepIndex {
+            k,
+            time: w.time,
+            triangles: nt,
+            bodies: n,
+            contacts: nc,
+        });
         self.write_xdmf()
     }
 
@@ -187,7 +223,13 @@ impl Output {
             x,
             r#"<Grid Name="surface" GridType="Collection" CollectionType="Temporal">"#
         );
-        for &(k, t, nt, _) in &self.steps {
+        for &StepIndex {
+            k,
+            time: t,
+            triangles: nt,
+            ..
+        } in &self.steps
+        {
             let _ = writeln!(
                 x,
                 r#"<Grid Name="step{k}" GridType="Uniform"><Time Value="{t:e}"/>"#
@@ -207,6 +249,39 @@ impl Output {
             );
             let _ = writeln!(x, "</Grid>");
         }
+        let _ = writeln!(x, "</Grid>");
+        let _ = writeln!(
+            x,
+            r#"<Grid Name="contacts" GridType="Collection" CollectionType="Temporal">"#
+        );
+        for s in &self.steps {
+            let (k, nc) = (s.k, s.contacts);
+            let _ = writeln!(
+                x,
+                r#"<Grid Name="contacts{k}" GridType="Uniform"><Time Value="{:e}"/>"#,
+                s.time
+            );
+            let _ = writeln!(
+                x,
+                r#"<Topology TopologyType="Polyvertex" NumberOfElements="{nc}"/>"#
+            );
+            let item = |what: &str| {
+                format!(
+                    r#"<DataItem Dimensions="{nc} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/contact_forces/{what}</DataItem>"#
+                )
+            };
+            let _ = writeln!(
+                x,
+                r#"<Geometry GeometryType="XYZ">{}</Geometry>"#,
+                item("points")
+            );
+            let _ = writeln!(
+                x,
+                r#"<Attribute Name="force" AttributeType="Vector" Center="Node">{}</Attribute>"#,
+                item("forces")
+            );
+            let _ = writeln!(x, "</Grid>");
+        }
         let _ = writeln!(x, "</Grid></Domain></Xdmf>");
         let path = self.dir.join("run.xmf");
         // Write beside and rename, so the index on disk is never half written.
@@ -215,4 +290,52 @@ impl Output {
             .and_then(|_| std::fs::rename(&tmp, &path))
             .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))
     }
+}
+
+/// The energy attributes of one output step.
+fn write_energies(g: &hdf5::Group, sim: &Simulation) -> CliResult {
+    let e = sim.energies();
+    let group = g.create_group("energy").map_err(h5err)?;
+    let mut values = vec![
+        ("kinetic_translation".to_string(), e.translation),
+        ("kinetic_rotation".to_string(), e.rotation),
+    ];
+    for x in &e.effects {
+        values.push((format!("{}_stored", x.effect), x.stored));
+        values.push((format!("{}_dissipated", x.effect), x.dissipated));
+    }
+    for (name, v) in values {
+        group
+            .new_attr::<f64>()
+            .create(name.as_str())
+            .and_then(|a| a.write_scalar(&v))
+            .map_err(h5err)?;
+    }
+    Ok(())
+}
+
+/// The contacts of one output step; returns how many.
+fn write_contacts(g: &hdf5::Group, sim: &Simulation) -> CliResult<usize> {
+    let forces: Vec<_> = sim.contact_forces().collect();
+    let nc = forces.len();
+    let group = g.create_group("contact_forces").map_err(h5err)?;
+    let points = Array2::from_shape_fn((nc, 3), |(r, c)| forces[r].0.point[c]);
+    let f = Array2::from_shape_fn((nc, 3), |(r, c)| forces[r].1[c]);
+    let bodies = Array2::from_shape_fn((nc, 2), |(r, c)| {
+        let contact = forces[r].0;
+        [contact.a, contact.b][c] as u32
+    });
+    for (name, data) in [("points", &points), ("forces", &f)] {
+        group
+            .new_dataset_builder()
+            .with_data(data)
+            .create(name)
+            .map_err(h5err)?;
+    }
+    group
+        .new_dataset_builder()
+        .with_data(&bodies)
+        .create("bodies")
+        .map_err(h5err)?;
+    Ok(nc)
 }

@@ -60,9 +60,30 @@ fn run_writes_hdf5_and_xdmf_for_every_output_step() {
         .read_2d()
         .unwrap();
     assert_eq!(pts.shape(), &[3 * (18 * 20 + 12), 3]);
+    // The energy books: kinetic energy, gravity's potential, the springs and
+    // what the dashpots and friction dissipated.
+    let energy = last.group("energy").unwrap();
+    let read = |name: &str| -> f64 { energy.attr(name).unwrap().read_scalar().unwrap() };
+    assert!(read("kinetic_translation") > 0.0);
+    for name in [
+        "gravity_stored",
+        "contact_stored",
+        "contact_dissipated",
+        "friction_dissipated",
+    ] {
+        assert!(read(name).is_finite(), "{name}");
+    }
+    // Contact forces: one point, force and body pair per contact (none yet:
+    // the particles are still falling; an empty step must be readable too).
+    let contacts = last.group("contact_forces").unwrap();
+    let forces: ndarray::Array2<f64> = contacts.dataset("forces").unwrap().read_2d().unwrap();
+    let bodies: ndarray::Array2<u32> = contacts.dataset("bodies").unwrap().read_2d().unwrap();
+    assert_eq!(forces.ncols(), 3);
+    assert_eq!(bodies.nrows(), forces.nrows());
     let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
     assert_eq!(xmf.matches("<Grid Name=\"step").count(), 3);
     assert!(xmf.contains("run.h5:/steps/2/surface/points"));
+    assert!(xmf.contains("run.h5:/steps/2/contact_forces/forces"));
     let _ = std::fs::remove_dir_all(dir);
 }
 

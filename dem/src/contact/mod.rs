@@ -29,62 +29,48 @@
 //! 3. Narrow phase: the hybrid distance kernel on all surviving triangle pairs,
 //!    in SIMD batches. Culling and kernel run in the same parallel task, over
 //!    a share of the body pairs.
-//! 4. A pair of triangles is in contact when d < halo_a + halo_b; depth is
-//!    halo_a + halo_b - d, the contact point the midpoint of the closest points
-//!    P, Q and the normal (P - Q)/|P - Q|. When P = Q (triangles crossing, a
-//!    penetration deeper than the halos) the normal is the outward face normal
-//!    of b's triangle (meshes are validated outward-facing).
+//! 4. A pair of triangles is in contact when their distance d is below the
+//!    halo sum (the kernel's closest points are not kept: for parallel faces
+//!    they are one choice among many).
 //!
-//! Then, per body pair ([`body_contacts`]): triangle contacts whose points
-//! coincide to within half the halo sum (a vertex shared by several
-//! triangles, say) are merged, keeping the deepest; the survivors share the
-//! pair's stiffness (see effects::contact). Triangle contacts are sorted
-//! first, so the result does not depend on how triangles were split. On one
-//! node (one phase) each task merges the body pairs it owns, in parallel;
-//! split across ranks the caller merges once both phases are in.
+//! Then, per body pair, the contacts are built on the bodies' features from
+//! its triangle contacts ([`features`]): corners of one body on the faces,
+//! creases or corners of the other, and creases crossing creases, each a
+//! named point with a normal and a depth. They do not depend on how the
+//! triangles were split between tasks or ranks, nor on how the surfaces are
+//! triangulated. On one node (one phase) each task builds the contacts of
+//! the body pairs it owns, in parallel; split across ranks the caller builds
+//! them once both phases are in ([`body_contacts`]).
 
 mod bounds;
 mod broad_phase;
+pub mod features;
 mod triangle_set;
 
 pub use bounds::Bounds;
+pub use features::{Contact, FeatureKey, FeatureKind, WeightGradient};
 pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
 use crate::distance::{
     distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Triangle,
 };
+use crate::mesh::Features;
 use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
+use features::{append_feature_contacts, FeatureScratch};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-/// One contact between bodies `a` < `b`; the normal points from b to a.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Contact {
-    pub a: usize,
-    pub b: usize,
-    /// The triangle pair that produced it: the key of its friction history.
-    pub tri_a: u32,
-    pub tri_b: u32,
-    pub point: DVec3,
-    pub normal: DVec3,
-    pub depth: f64,
-    /// Contacts of this body pair after merging.
-    pub share: u32,
-}
-
-/// A triangle pair within contact reach, before merging per body pair.
+/// A triangle pair within contact reach, before the body pair's contacts are built.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TriangleContact {
     /// Triangle `a` of the lower-numbered body, `b` of the other.
     pub a: TriangleKey,
     pub b: TriangleKey,
     pub closest: Closest,
-    /// Outward unit normal of b's triangle: the contact normal when P = Q.
-    pub face_normal_b: DVec3,
 }
 
 /// Which triangle pairs a detection pass examines.
@@ -104,8 +90,8 @@ pub struct DetectionStats {
     pub triangle_pairs: u64,
     pub fallback_pairs: u64,
     pub contacts: u64,
-    /// Contacts whose triangles crossed: the bodies went deeper than their
-    /// halos (stiffness too low for the impact speed, or the step too long).
+    /// Contacts deeper than the halos (a corner behind a face, creases
+    /// crossed): stiffness too low for the impact speed, or the step too long.
     pub deep_contacts: u64,
     /// Broad phases run (one per pass without a skin; with one, each
     /// rebuild of the neighbour list).
@@ -180,6 +166,7 @@ struct Task {
     body_pairs: usize,
     found: Vec<TriangleContact>,
     counts: Counts,
+    scratch: FeatureScratch,
     contacts: Vec<Contact>,
     deep: u64,
     /// Seconds `run` took in the last pass.
@@ -208,15 +195,17 @@ impl Detector {
     }
 
     /// All contacts of the world on one node; `halos[i]` is body i's contact
-    /// halo. Runs the broad phase (nothing is known of how bodies moved).
+    /// halo, `features[s]` the features of shape s. Runs the broad phase
+    /// (nothing is known of how bodies moved).
     pub fn detect(
         &mut self,
         world: &World,
+        features: &[Features],
         halos: &[f64],
         opts: &Options,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
-        self.detect_moved(world, halos, opts, None, contacts)
+        self.detect_moved(world, features, halos, opts, None, contacts)
     }
 
     /// Like [`Self::detect`], told `moved`: a bound on how far any point of any
@@ -228,6 +217,7 @@ impl Detector {
     pub fn detect_moved(
         &mut self,
         world: &World,
+        features: &[Features],
         halos: &[f64],
         opts: &Options,
         moved: Option<f64>,
@@ -268,7 +258,7 @@ impl Detector {
             halos,
             opts,
             phase: Phase::LocalLocal,
-            merge: true,
+            build: Some(features),
         };
         let (mut stats, n_tasks) = if keep_list {
             self.times = DetectionTimes::default();
@@ -287,10 +277,10 @@ impl Detector {
         }
         self.sets = sets;
         self.times.triangle_update = triangle_update;
-        // Each task merged its own body pairs (one phase: a body pair's
-        // triangle contacts all come from one task), and the tasks hold
-        // consecutive shares of the sorted body pairs, so joining their
-        // contacts in task order gives what `body_contacts` would.
+        // Each task built the contacts of its own body pairs (one phase: a
+        // body pair's triangle contacts all come from one task), and the
+        // tasks hold consecutive shares of the sorted body pairs, so joining
+        // their contacts in task order gives what `body_contacts` would.
         contacts.clear();
         for task in &self.tasks[..n_tasks] {
             contacts.extend_from_slice(&task.contacts);
@@ -306,10 +296,10 @@ impl Detector {
         self.times
     }
 
-    /// Appends to `found` the triangle contacts of one phase on `set`, to be
-    /// merged per body pair by [`body_contacts`] once all phases are in.
-    /// Returns the pass's counts (contacts counted after merging by
-    /// [`body_contacts`], so 0 here).
+    /// Appends to `found` the triangle contacts of one phase on `set`, from
+    /// which [`body_contacts`] builds the contacts once all phases are in.
+    /// Returns the pass's counts (contacts counted by [`body_contacts`], so 0
+    /// here).
     pub fn triangle_contacts(
         &mut self,
         world: &World,
@@ -325,7 +315,7 @@ impl Detector {
             halos,
             opts,
             phase,
-            merge: false,
+            build: None,
         };
         let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.0);
         for task in &self.tasks[..n_tasks] {
@@ -364,8 +354,8 @@ impl Detector {
     }
 }
 
-/// What one detection pass works on. With `merge`, each task also merges
-/// its triangle contacts into body contacts.
+/// What one detection pass works on. With `build` (the shapes' features),
+/// each task also builds the contacts of its body pairs.
 #[derive(Clone, Copy)]
 struct Pass<'a> {
     world: &'a World,
@@ -375,7 +365,7 @@ struct Pass<'a> {
     halos: &'a [f64],
     opts: &'a Options,
     phase: Phase,
-    merge: bool,
+    build: Option<&'a [Features]>,
 }
 
 /// Runs the tasks of one phase on `body_pairs` (sorted); returns the pass's
@@ -442,8 +432,8 @@ impl Pass<'_> {
 impl Task {
     /// Culls the triangle pairs of `body_pairs` (group indices of the pass's
     /// set) by inflated boxes and face planes, computes their distances and
-    /// keeps those within reach, sorted as [`body_contacts`] wants them; with
-    /// `merge`, merges those into body contacts too (in parallel with the
+    /// keeps those within reach, sorted by [`pair_order`]; with `build`,
+    /// builds the body pairs' contacts from those too (in parallel with the
     /// other tasks rather than after them all).
     fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)]) {
         let set = pass.set_of_this_thread();
@@ -452,7 +442,7 @@ impl Task {
             halos,
             opts,
             phase,
-            merge,
+            build,
             ..
         } = *pass;
         let groups = set.groups();
@@ -531,21 +521,25 @@ impl Task {
         for (&(i, j), r) in self.owners.iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
             if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
-                let n = set.triangle(j as usize).plane().0;
                 self.found.push(TriangleContact {
                     a: ka,
                     b: kb,
                     closest: *r,
-                    face_normal_b: if n == DVec3::ZERO { DVec3::Z } else { n },
                 });
             }
         }
-        self.found.sort_unstable_by_key(merge_order);
+        self.found.sort_unstable_by_key(pair_order);
         self.contacts.clear();
-        self.deep = if merge {
-            append_body_contacts(&self.found, halos, &mut self.contacts)
-        } else {
-            0
+        self.deep = match build {
+            Some(features) => append_body_contacts(
+                &self.found,
+                world,
+                features,
+                halos,
+                &mut self.scratch,
+                &mut self.contacts,
+            ),
+            None => 0,
         };
     }
 }
@@ -571,69 +565,45 @@ impl PairSource for SetPairs<'_> {
     }
 }
 
-/// Body contacts from triangle contacts (sorted in place by body pair, then
-/// by b's triangle, then a's): contacts at (nearly) the same point merged,
-/// each body pair's contacts told how many share it. Returns the number of
-/// contacts and of deep ones (triangles crossing).
+/// The contacts of the body pairs of `found` (sorted in place by
+/// [`pair_order`]), all of each body pair's triangle contacts present, on a
+/// world whose shapes have `features`. Returns the number of contacts and of
+/// deep ones (deeper than the halos).
 pub fn body_contacts(
     found: &mut [TriangleContact],
+    world: &World,
+    features: &[Features],
     halos: &[f64],
     contacts: &mut Vec<Contact>,
 ) -> (u64, u64) {
-    found.sort_unstable_by_key(merge_order);
+    found.sort_unstable_by_key(pair_order);
     contacts.clear();
-    let deep = append_body_contacts(found, halos, contacts);
+    let mut scratch = FeatureScratch::default();
+    let deep = append_body_contacts(found, world, features, halos, &mut scratch, contacts);
     (contacts.len() as u64, deep)
 }
 
-/// The order in which triangle contacts are merged: a total order (no two
-/// triangle contacts share a key), so merging never depends on how they were found.
-fn merge_order(t: &TriangleContact) -> (u32, u32, u32, u32) {
+/// The order of triangle contacts: by body pair, then by b's triangle, then
+/// a's. A total order (no two triangle contacts share a key), so the
+/// contacts never depend on how the triangle contacts were found.
+pub fn pair_order(t: &TriangleContact) -> (u32, u32, u32, u32) {
     (t.a.body, t.b.body, t.b.index, t.a.index)
 }
 
-/// Appends the body contacts of `found` (sorted by [`merge_order`], all of
-/// each body pair's triangle contacts present) to `contacts`; returns the
-/// number of deep ones.
+/// Appends the contacts of each body pair of `found` (sorted by
+/// [`pair_order`]) to `contacts`; returns the number of deep ones.
 fn append_body_contacts(
     found: &[TriangleContact],
+    world: &World,
+    features: &[Features],
     halos: &[f64],
+    scratch: &mut FeatureScratch,
     contacts: &mut Vec<Contact>,
 ) -> u64 {
-    let mut deep = 0u64;
-    for group in found.chunk_by(|x, y| (x.a.body, x.b.body) == (y.a.body, y.b.body)) {
-        let (a, b) = (group[0].a.body as usize, group[0].b.body as usize);
-        let reach = halos[a] + halos[b];
-        let first = contacts.len();
-        for t in group {
-            let r = &t.closest;
-            let d = r.p - r.q;
-            let len = d.length();
-            let normal = if len > 0.0 && len.is_finite() {
-                d / len
-            } else {
-                deep += 1;
-                t.face_normal_b
-            };
-            let c = Contact {
-                a,
-                b,
-                tri_a: t.a.index,
-                tri_b: t.b.index,
-                point: (r.p + r.q) * 0.5,
-                normal,
-                depth: reach - r.distance,
-                share: 1,
-            };
-            merge_into(&mut contacts[first..], c, 0.5 * reach)
-                .map_or_else(|| contacts.push(c), |_| ());
-        }
-        let share = (contacts.len() - first) as u32;
-        for c in &mut contacts[first..] {
-            c.share = share;
-        }
-    }
-    deep
+    found
+        .chunk_by(|x, y| (x.a.body, x.b.body) == (y.a.body, y.b.body))
+        .map(|group| append_feature_contacts(group, world, features, halos, scratch, contacts))
+        .sum()
 }
 
 /// Whether the plane (n, d) of one triangle has all of `t` on one side, farther
@@ -658,16 +628,4 @@ fn select(out: &mut Vec<u32>, range: Range<usize>, keep: impl Fn(usize) -> bool)
         found += keep(i) as usize;
     }
     found
-}
-
-/// Merges `c` into a contact of the same pair at (nearly) the same place,
-/// keeping the deeper one; `None` when there is none.
-fn merge_into(existing: &mut [Contact], c: Contact, tol: f64) -> Option<()> {
-    let m = existing
-        .iter_mut()
-        .find(|e| (e.point - c.point).length() <= tol)?;
-    if c.depth > m.depth {
-        *m = c;
-    }
-    Some(())
 }

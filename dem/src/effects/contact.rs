@@ -1,47 +1,129 @@
-//! Normal contact: a linear spring-dashpot per body pair.
+//! Normal contact: a linear spring per contact, a dashpot per body pair.
 //!
-//! For a body pair with stiffness k (springs of the two materials in series),
-//! reduced mass m* = 1/(1/m_a + 1/m_b) and restitution e (mean of the two),
-//! the pair's damping is c = 2 ζ √(m* k) with ζ = −ln e / √(π² + ln² e), which
-//! gives restitution e exactly for a head-on impact. The pair's n contacts
-//! (after merging) share it: each applies
-//!   F = (k δ − c v_n) / n   along the normal,
-//! so the pair acts like one spring-dashpot whatever the triangulation (a face
-//! on a face gives several contact points at one depth). The force may pull
-//! (tension) at the end of an impact, as in the linear model whose restitution
-//! is exact; it is reported as 0 to friction.
+//! **Springs.** Each contact i of a body pair (a corner on a face, a corner
+//! on a crease or a corner, creases crossing: see `contact::features`) has a
+//! depth δ_i > 0 (the overlap of the rounded surfaces), a unit normal n_i and
+//! a point p_i. Its spring stores E_i = k δ_i²/2, with k the pair's
+//! stiffness (the two materials' springs in series), and pushes with
+//! F_i = k δ_i n_i through p_i. The gradient of δ_i with respect to the two
+//! poses is exactly n_i acting through p_i, so F_i is minus the gradient of
+//! E_i; and a contact appears and leaves with δ_i = 0. The springs therefore
+//! conserve energy: what an elastic impact returns does not depend on the
+//! step, the mesh or where the kernel found closest points.
+//!
+//! **Dashpot.** Damping only has to dissipate, and it is chosen so that a
+//! pair rebounds with restitution e whether it touches at one corner, along
+//! an edge (two corners) or face to face (the corners of the overlap). The
+//! pair's n contacts act together as one spring of stiffness K = n k; its
+//! dashpot is c = 2 ζ √(m K), ζ = −ln e / √(π² + ln² e), which gives
+//! restitution e exactly for a linear spring-dashpot of mass m. Here m is the
+//! pair's effective mass along the depth-weighted mean normal n̄ at the
+//! depth-weighted centre p̄ of its contacts,
+//!   1/m = 1/m_a + 1/m_b + (r_a × n̄)·I_a⁻¹(r_a × n̄) + (r_b × n̄)·I_b⁻¹(r_b × n̄)
+//! (r from each centre of mass to p̄; the rotational terms only with the
+//! rotation effect), so that a corner hitting off-centre, which turns the
+//! body, is damped for the mass it actually moves. Each contact takes an
+//! equal share, c_i = c/n, and its normal force is
+//!   F_i = k δ_i − c_i v_n,i
+//! (v_n,i the normal approach speed at p_i). It may pull at the very end of
+//! an impact, as in the linear model whose restitution is exact; friction is
+//! told 0 then.
 
 use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
-use crate::contact::Detector;
+use crate::body::Body;
+use crate::contact::{Contact, Detector};
 use crate::distance::Options;
 use crate::material::MaterialPairs;
+use crate::mesh::Features;
 use crate::world::World;
+use glam::DVec3;
 use rayon::prelude::*;
+use std::ops::Range;
 
 pub struct ContactEffect {
     detector: Detector,
     pub kernel: Options,
+    /// Per shape: its faces, creases and corners.
+    features: Vec<Features>,
     /// Per body: halo.
     halo: Vec<f64>,
     laws: MaterialPairs,
+    /// Whether bodies turn: the dashpot's effective mass counts inertia then.
+    rotation: bool,
     /// Spring energy of the last evaluation (for energy checks).
     energy: f64,
-    /// Per contact: the force pair, the normal force, the spring energy.
-    per_contact: Vec<(PairForce, f64, f64)>,
+    /// Work the dashpots have taken out of the bodies since the start.
+    dissipated: f64,
+    /// Per body pair in contact: its contacts.
+    pairs: Vec<Range<usize>>,
+    /// Per contact: the force pair, the normal force, the spring energy and
+    /// the dashpot's power.
+    per_contact: Vec<(PairForce, f64, f64, f64)>,
 }
 
 impl ContactEffect {
     /// `skin`: the detector's neighbour-list skin (0: none).
-    pub fn new(world: &World, kernel: Options, skin: f64) -> Self {
+    pub fn new(world: &World, kernel: Options, skin: f64, rotation: bool) -> Self {
         ContactEffect {
             detector: Detector::with_skin(skin),
             kernel,
+            features: world.shapes.iter().map(Features::of).collect(),
             halo: world.per_body(|m| m.halo),
             laws: MaterialPairs::new(&world.materials),
+            rotation,
             energy: 0.0,
+            dissipated: 0.0,
+            pairs: Vec::new(),
             per_contact: Vec::new(),
         }
     }
+}
+
+/// The body pairs of `contacts` (grouped by pair, as detection returns them).
+pub(crate) fn pair_ranges(contacts: &[Contact], out: &mut Vec<Range<usize>>) {
+    out.clear();
+    let mut start = 0;
+    for group in contacts.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
+        out.push(start..start + group.len());
+        start += group.len();
+    }
+}
+
+/// 1/m for body `b` pushed along `n` at arm `r` from its centre of mass.
+fn inverse_mass_along(b: &Body, r: DVec3, n: DVec3, rotation: bool) -> f64 {
+    if b.is_static() {
+        return 0.0;
+    }
+    let turn = if rotation {
+        let rn = r.cross(n);
+        let local = b.q.inverse() * rn;
+        rn.dot(b.q * (b.inv_inertia_body * local))
+    } else {
+        0.0
+    };
+    b.inv_mass + turn
+}
+
+/// The effective mass of a body pair along the depth-weighted mean normal at
+/// the depth-weighted centre of its contacts.
+pub(crate) fn pair_mass(world: &World, contacts: &[Contact], rotation: bool) -> f64 {
+    let (mut centre, mut normal, mut weight) = (DVec3::ZERO, DVec3::ZERO, 0.0);
+    for c in contacts {
+        let w = c.depth * c.weight;
+        centre += c.point * w;
+        normal += c.normal * w;
+        weight += w;
+    }
+    let centre = if weight > 0.0 {
+        centre / weight
+    } else {
+        contacts[0].point
+    };
+    let n = normal.try_normalize().unwrap_or(contacts[0].normal);
+    let (ba, bb) = (&world.bodies[contacts[0].a], &world.bodies[contacts[0].b]);
+    let inverse = inverse_mass_along(ba, centre - ba.x, n, rotation)
+        + inverse_mass_along(bb, centre - bb.x, n, rotation);
+    1.0 / inverse
 }
 
 impl Effect for ContactEffect {
@@ -52,6 +134,7 @@ impl Effect for ContactEffect {
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
         let det = self.detector.detect_moved(
             world,
+            &self.features,
             &self.halo,
             &self.kernel,
             ctx.moved,
@@ -59,29 +142,33 @@ impl Effect for ContactEffect {
         );
         ctx.stats.detection = det;
         ctx.detection_times = self.detector.last_times();
-        let laws = &self.laws;
-        ctx.contacts
-            .par_iter()
+        pair_ranges(&ctx.contacts, &mut self.pairs);
+        let (laws, rotation, contacts) = (&self.laws, self.rotation, &ctx.contacts);
+        self.per_contact.clear();
+        self.per_contact.resize(contacts.len(), Default::default());
+        // Each body pair writes its own contacts' slots.
+        let mut slots = Vec::with_capacity(self.pairs.len());
+        let mut rest = self.per_contact.as_mut_slice();
+        for r in &self.pairs {
+            let (head, tail) = rest.split_at_mut(r.len());
+            slots.push((r.clone(), head));
+            rest = tail;
+        }
+        slots
+            .into_par_iter()
             .with_min_len(FORCE_GRAIN)
-            .map(|c| {
-                let (ba, bb) = (&world.bodies[c.a], &world.bodies[c.b]);
-                let law = laws.get(ba.material, bb.material);
-                let k = law.stiffness;
-                let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-                let damping = 2.0 * law.damping_ratio * (m * k).sqrt();
-                let v_n = (ba.velocity_at(c.point) - bb.velocity_at(c.point)).dot(c.normal);
-                let n = c.share as f64;
-                let f = (k * c.depth - damping * v_n) / n;
-                let pair = PairForce::new(c.a, ba.x, c.b, bb.x, c.point, c.normal * f);
-                (pair, f.max(0.0), 0.5 * k * c.depth * c.depth / n)
-            })
-            .collect_into_vec(&mut self.per_contact);
+            .for_each(|(range, out)| {
+                pair_forces(world, laws, rotation, &contacts[range], out);
+            });
         ctx.normal_force.clear();
+        ctx.contact_force.clear();
         self.energy = 0.0;
-        for (pair, normal_force, energy) in &self.per_contact {
+        for (pair, normal_force, energy, power) in &self.per_contact {
             forces.add_pair(pair);
             ctx.normal_force.push(*normal_force);
+            ctx.contact_force.push(pair.force);
             self.energy += energy;
+            self.dissipated += power * ctx.dt;
         }
         ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
     }
@@ -90,21 +177,66 @@ impl Effect for ContactEffect {
         self.energy
     }
 
-    /// The springs' energy only, for [`Effect::potential_energy`]: contacts
-    /// are found afresh every step.
+    fn dissipated(&self) -> f64 {
+        self.dissipated
+    }
+
+    /// The springs' energy (for [`Effect::potential_energy`]: contacts are
+    /// found afresh every step) and the dashpots' work so far.
     fn state(&self) -> Option<Vec<f64>> {
-        Some(vec![self.energy])
+        Some(vec![self.energy, self.dissipated])
     }
 
     fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
         match values {
-            [energy] if energy.is_finite() => {
+            [energy, dissipated] if energy.is_finite() && dissipated.is_finite() => {
                 self.energy = *energy;
+                self.dissipated = *dissipated;
                 Ok(())
             }
             _ => Err(format!(
-                "the contact effect's state is one finite number (the springs' energy), got {values:?}"
+                "the contact effect's state is two finite numbers (the springs' energy, \
+                 the dashpots' work), got {values:?}"
             )),
         }
+    }
+}
+
+/// The normal forces of one body pair's contacts (see the module doc).
+fn pair_forces(
+    world: &World,
+    laws: &MaterialPairs,
+    rotation: bool,
+    contacts: &[Contact],
+    out: &mut [(PairForce, f64, f64, f64)],
+) {
+    let (a, b) = (contacts[0].a, contacts[0].b);
+    let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
+    let law = laws.get(ba.material, bb.material);
+    let k = law.stiffness;
+    let weights: f64 = contacts.iter().map(|c| c.weight).sum();
+    let m = pair_mass(world, contacts, rotation);
+    let damping = if weights > 0.0 {
+        2.0 * law.damping_ratio * (m * weights * k).sqrt() / weights
+    } else {
+        0.0
+    };
+    for (c, slot) in contacts.iter().zip(out) {
+        let v_n = (ba.velocity_at(c.point) - bb.velocity_at(c.point)).dot(c.normal);
+        let (spring, dashpot) = (k * c.weight, damping * c.weight);
+        let f = spring * c.depth - dashpot * v_n;
+        let mut pair = PairForce::new(a, ba.x, b, bb.x, c.point, c.normal * f);
+        // The spring's energy k w δ²/2 also changes with the weight w.
+        let g = c.gradient;
+        let half = -0.5 * k * c.depth * c.depth;
+        pair.force += g.force_a * half;
+        pair.torque_a += g.torque_a * half;
+        pair.torque_b += g.torque_b * half;
+        *slot = (
+            pair,
+            f.max(0.0),
+            0.5 * spring * c.depth * c.depth,
+            dashpot * v_n * v_n,
+        );
     }
 }

@@ -1,35 +1,55 @@
-//! Coulomb friction with a tangential spring and history, one per body pair.
+//! Coulomb friction with a tangential spring per contact.
 //!
-//! A body pair in contact carries an elastic tangential displacement ξ at the
-//! depth-weighted centre c of its contact points, with the depth-weighted mean
-//! normal n. Every step ξ is turned into the current tangent plane and grows by
-//! v_t dt (v_t: tangential relative velocity at c); the force is F_t = −k_t ξ
-//! − c_t v_t with k_t = (2/7) k, the usual ratio for a linear spring model,
-//! and c_t = 2 ζ √(m* k_t) damped like the normal spring (ζ from the
-//! restitution), so that a resting contact does not ring. When
-//! |F_t| > μ F_n (F_n: the pair's total normal force) the pair slides: F_t is
-//! cut to μ F_n and ξ set to match it, ξ = −(F_t + c_t v_t)/k_t. Keeping the history per pair, not per
-//! triangle pair, makes static friction hold on flat contacts, whose contact
-//! points the triangle kernel places anywhere on the shared face. A pair that
-//! separates forgets its history.
+//! Each contact (named by its body pair and features, see
+//! `contact::features`) carries an elastic tangential displacement ξ from
+//! step to step. Every step ξ is turned into the contact's current tangent
+//! plane, keeping its length, and grows by v_t dt (v_t: the tangential
+//! relative velocity at the contact point). The force is
+//!   F_t = −k_t ξ − c_t v_t,  k_t = (2/7) k,
+//! the usual ratio for linear springs, with a dashpot shared over the pair's
+//! n contacts like the normal one, c_t = 2 ζ √(m* n k_t) / n (m* the pair's
+//! reduced mass), so that a resting contact does not ring. When
+//! |F_t| > μ F_n,i (the contact's own normal force) the contact slides: F_t
+//! is cut to μ F_n,i and ξ set to match it, ξ = −(F_t + c_t v_t)/k_t.
+//!
+//! Contacts at distinct points of a pair (a face resting on a face touches at
+//! the corners of the overlap) resist both sliding and twisting about the
+//! normal; a single point does not resist twisting, as a point contact
+//! should not. A contact whose name changes while its corner stays in touch
+//! (a corner sliding off a face onto a crease) keeps its displacement; a
+//! contact that ends forgets it.
+//!
+//! Work: the tangential forces' work on the bodies is counted each step;
+//! what the springs do not hold has been dissipated by sliding and damping.
 
+use super::contact::pair_ranges;
 use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
-use crate::contact::Contact;
+use crate::contact::{Contact, FeatureKey, FeatureKind};
 use crate::material::MaterialPairs;
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
 
+/// A contact's name over the whole world.
+type Key = (usize, usize, FeatureKey);
+
 pub struct FrictionEffect {
     laws: MaterialPairs,
-    /// ξ per body pair in contact at the last step, sorted by pair, as the
-    /// contacts come: looked up by one merge-walk per step, no hashing.
-    history: Vec<((usize, usize), DVec3)>,
-    next: Vec<((usize, usize), DVec3)>,
-    /// This step's pairs in contact: their contacts and carried displacement.
-    pairs: Vec<(Range<usize>, DVec3)>,
-    results: Vec<Option<(PairForce, DVec3)>>,
+    /// ξ per contact of the last step, sorted by key, as the contacts come:
+    /// looked up by one merge-walk per step, no hashing.
+    history: Vec<(Key, DVec3)>,
+    next: Vec<(Key, DVec3)>,
+    /// This step's body pairs in contact, and their entries in `history`.
+    pairs: Vec<Range<usize>>,
+    carried: Vec<Range<usize>>,
+    /// Per contact: the force pair, the displacement carried on, and the
+    /// tangential force's power.
+    results: Vec<(PairForce, DVec3, f64)>,
+    /// Work the tangential forces have taken out of the bodies since the start.
+    work: f64,
+    /// Energy of the tangential springs now.
+    energy: f64,
 }
 
 impl FrictionEffect {
@@ -39,10 +59,16 @@ impl FrictionEffect {
             history: Vec::new(),
             next: Vec::new(),
             pairs: Vec::new(),
+            carried: Vec::new(),
             results: Vec::new(),
+            work: 0.0,
+            energy: 0.0,
         }
     }
 }
+
+/// The ratio of tangential to normal stiffness.
+const TANGENTIAL_RATIO: f64 = 2.0 / 7.0;
 
 impl Effect for FrictionEffect {
     fn name(&self) -> &'static str {
@@ -50,130 +76,208 @@ impl Effect for FrictionEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        // Body pairs in contact, each with the displacement it carried from
-        // the last step: one walk along both lists, both sorted by pair.
-        // Contacts come grouped by body pair, pairs in increasing order (`body_contacts`).
-        self.pairs.clear();
-        let mut old = self.history.iter().peekable();
-        let mut start = 0;
-        for group in ctx.contacts.chunk_by(|x, y| (x.a, x.b) == (y.a, y.b)) {
-            let key = (group[0].a, group[0].b);
-            while old.next_if(|h| h.0 < key).is_some() {}
-            let xi = old.next_if(|h| h.0 == key).map_or(DVec3::ZERO, |h| h.1);
-            self.pairs.push((start..start + group.len(), xi));
-            start += group.len();
+        pair_ranges(&ctx.contacts, &mut self.pairs);
+        // Each pair's entries in the history: one walk along both lists,
+        // both sorted by body pair.
+        self.carried.clear();
+        let mut at = 0;
+        for r in &self.pairs {
+            let pair = (ctx.contacts[r.start].a, ctx.contacts[r.start].b);
+            while at < self.history.len() && (self.history[at].0 .0, self.history[at].0 .1) < pair {
+                at += 1;
+            }
+            let start = at;
+            while at < self.history.len() && (self.history[at].0 .0, self.history[at].0 .1) == pair
+            {
+                at += 1;
+            }
+            self.carried.push(start..at);
         }
-        let (laws, dt) = (&self.laws, ctx.dt);
+        let (laws, dt, history) = (&self.laws, ctx.dt, &self.history);
         let (contacts, normal_force) = (&ctx.contacts, &ctx.normal_force);
         self.results.clear();
-        self.pairs
-            .par_iter()
-            .with_min_len(FORCE_GRAIN)
-            .map(|(range, xi)| {
-                pair_friction(
-                    world,
-                    laws,
-                    &contacts[range.clone()],
-                    &normal_force[range.clone()],
-                    *xi,
-                    dt,
-                )
-            })
-            .collect_into_vec(&mut self.results);
-        self.next.clear();
-        for (force, xi) in self.results.iter().flatten() {
-            forces.add_pair(force);
-            self.next.push(((force.a, force.b), *xi));
-            ctx.stats.tangential_evaluations += 1;
+        self.results.resize(contacts.len(), Default::default());
+        let mut slots = Vec::with_capacity(self.pairs.len());
+        let mut rest = self.results.as_mut_slice();
+        for (r, old) in self.pairs.iter().zip(&self.carried) {
+            let (head, tail) = rest.split_at_mut(r.len());
+            slots.push((r.clone(), &history[old.clone()], head));
+            rest = tail;
         }
+        slots
+            .into_par_iter()
+            .with_min_len(FORCE_GRAIN)
+            .for_each(|(range, old, out)| {
+                let (c, f) = (&contacts[range.clone()], &normal_force[range]);
+                pair_friction(world, laws, c, f, old, dt, out);
+            });
+        self.next.clear();
+        self.energy = 0.0;
+        for (k, (c, (force, xi, power))) in ctx.contacts.iter().zip(&self.results).enumerate() {
+            forces.add_pair(force);
+            ctx.contact_force[k] += force.force;
+            self.next.push(((c.a, c.b, c.key), *xi));
+            let law = self
+                .laws
+                .get(world.bodies[c.a].material, world.bodies[c.b].material);
+            self.energy += 0.5 * TANGENTIAL_RATIO * law.stiffness * xi.length_squared();
+            self.work -= power * dt;
+        }
+        ctx.stats.tangential_evaluations += ctx.contacts.len() as u64;
         std::mem::swap(&mut self.history, &mut self.next);
     }
 
-    /// The tangential springs: per body pair in contact, a, b and ξ.
+    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
+        self.energy
+    }
+
+    /// Work taken out of the bodies less what the springs hold.
+    fn dissipated(&self) -> f64 {
+        self.work - self.energy
+    }
+
+    /// The work so far, the springs' energy, then per contact: a, b, the
+    /// feature kind and indices, and ξ.
     fn state(&self) -> Option<Vec<f64>> {
-        let entry =
-            |&((a, b), xi): &((usize, usize), DVec3)| [a as f64, b as f64, xi.x, xi.y, xi.z];
-        Some(self.history.iter().flat_map(entry).collect())
+        let entry = |&((a, b, k), xi): &(Key, DVec3)| {
+            [
+                a as f64,
+                b as f64,
+                k.kind as u8 as f64,
+                k.on_a as f64,
+                k.on_b as f64,
+                xi.x,
+                xi.y,
+                xi.z,
+            ]
+        };
+        let head = [self.work, self.energy];
+        Some(
+            head.into_iter()
+                .chain(self.history.iter().flat_map(entry))
+                .collect(),
+        )
     }
 
     fn restore(&mut self, values: &[f64], world: &World) -> Result<(), String> {
-        if !values.len().is_multiple_of(5) {
-            return Err(format!(
-                "the friction effect's state holds 5 numbers per body pair (a, b, ξ), got {}",
+        let fail = || {
+            Err(format!(
+                "the friction effect's state holds the work, the springs' energy, then 8 \
+                 numbers per contact (a, b, feature kind and indices, ξ), got {} numbers",
                 values.len()
-            ));
+            ))
+        };
+        let [work, energy, rest @ ..] = values else {
+            return fail();
+        };
+        if rest.len() % 8 != 0 || !work.is_finite() || !energy.is_finite() {
+            return fail();
         }
         let n = world.bodies.len();
-        let index = |v: f64| (v >= 0.0 && v.fract() == 0.0 && v < n as f64).then_some(v as usize);
+        let index = |v: f64, below: usize| {
+            (v >= 0.0 && v.fract() == 0.0 && v < below as f64).then_some(v as usize)
+        };
         self.history.clear();
-        for (k, e) in values.chunks_exact(5).enumerate() {
-            let xi = DVec3::new(e[2], e[3], e[4]);
-            let pair = index(e[0]).zip(index(e[1]));
-            match pair {
-                Some((a, b))
-                    if a < b
-                        && xi.is_finite()
-                        && self.history.last().is_none_or(|last| last.0 < (a, b)) =>
-                {
-                    self.history.push(((a, b), xi))
+        for (i, e) in rest.chunks_exact(8).enumerate() {
+            let xi = DVec3::new(e[5], e[6], e[7]);
+            let kind = index(e[2], 256).and_then(|k| FeatureKind::from_index(k as u8));
+            let ids = index(e[3], u32::MAX as usize).zip(index(e[4], u32::MAX as usize));
+            let entry = index(e[0], n).zip(index(e[1], n)).zip(kind.zip(ids));
+            match entry {
+                Some(((a, b), (kind, (on_a, on_b)))) if a < b && xi.is_finite() => {
+                    let key = (
+                        a,
+                        b,
+                        FeatureKey {
+                            kind,
+                            on_a: on_a as u32,
+                            on_b: on_b as u32,
+                        },
+                    );
+                    if self.history.last().is_some_and(|last| last.0 >= key) {
+                        return Err(format!(
+                            "friction state, contact {i}: not in increasing order"
+                        ));
+                    }
+                    self.history.push((key, xi));
                 }
                 _ => {
                     return Err(format!(
-                        "friction state, body pair {k}: {e:?} is not a pair of bodies a < b \
-                         (of {n}), in increasing order, with a finite displacement"
+                        "friction state, contact {i}: {e:?} is not a contact of bodies a < b \
+                         (of {n}) with a known feature kind and a finite displacement"
                     ))
                 }
             }
         }
+        self.work = *work;
+        self.energy = *energy;
         Ok(())
     }
 }
 
-/// The friction force of one body pair in contact, from its contacts, their
-/// normal forces and the displacement `xi` it carried, with the displacement
-/// it carries on; `None` when the contacts give no normal (no depth).
+/// The corner a contact hangs on, to carry its displacement over when the
+/// feature it touches changes: (side, vertex).
+fn anchor(k: &FeatureKey) -> Option<(u8, u32)> {
+    match k.kind {
+        FeatureKind::CornerFace | FeatureKind::CornerCrease | FeatureKind::CornerCorner => {
+            Some((0, k.on_a))
+        }
+        FeatureKind::FaceCorner | FeatureKind::CreaseCorner => Some((1, k.on_b)),
+        FeatureKind::CreaseCrease => None,
+    }
+}
+
+/// The displacement contact `key` carried from the last step: its own, or
+/// that of a contact of the same corner.
+fn carried(old: &[(Key, DVec3)], key: &FeatureKey) -> DVec3 {
+    if let Ok(i) = old.binary_search_by(|e| e.0 .2.cmp(key)) {
+        return old[i].1;
+    }
+    let Some(corner) = anchor(key) else {
+        return DVec3::ZERO;
+    };
+    old.iter()
+        .find(|e| anchor(&e.0 .2) == Some(corner))
+        .map_or(DVec3::ZERO, |e| e.1)
+}
+
+/// The friction forces of one body pair's contacts, from their normal forces
+/// and the pair's entries of the last step's history (see the module doc).
 fn pair_friction(
     world: &World,
     laws: &MaterialPairs,
     contacts: &[Contact],
     normal_force: &[f64],
-    mut xi: DVec3,
+    old: &[(Key, DVec3)],
     dt: f64,
-) -> Option<(PairForce, DVec3)> {
+    out: &mut [(PairForce, DVec3, f64)],
+) {
     let (a, b) = (contacts[0].a, contacts[0].b);
-    let (mut c, mut n, mut w, mut f_n) = (DVec3::ZERO, DVec3::ZERO, 0.0, 0.0);
-    for (k, f) in contacts.iter().zip(normal_force) {
-        c += k.point * k.depth;
-        n += k.normal * k.depth;
-        w += k.depth;
-        f_n += f;
-    }
-    let n = n.try_normalize()?;
-    if w <= 0.0 {
-        return None;
-    }
-    let c = c / w;
     let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
-    let v_rel = ba.velocity_at(c) - bb.velocity_at(c);
-    let v_t = v_rel - n * v_rel.dot(n);
-    // Turn the stored displacement into the current tangent plane, keeping its length.
-    let len = xi.length();
-    xi -= n * xi.dot(n);
-    if let Some(dir) = xi.try_normalize() {
-        xi = dir * len;
-    }
-    xi += v_t * dt;
     let law = laws.get(ba.material, bb.material);
-    let k_t = (2.0 / 7.0) * law.stiffness;
-    let mu = law.friction;
+    let k_t = TANGENTIAL_RATIO * law.stiffness;
+    let n = contacts.len() as f64;
     let m = 1.0 / (ba.inv_mass + bb.inv_mass);
-    let c_t = 2.0 * law.damping_ratio * (m * k_t).sqrt();
-    let mut f_t = -xi * k_t - v_t * c_t;
-    let cap = mu * f_n;
-    let mag = f_t.length();
-    if mag > cap {
-        f_t *= if mag > 0.0 { cap / mag } else { 0.0 };
-        xi = -(f_t + v_t * c_t) / k_t;
+    let c_t = 2.0 * law.damping_ratio * (m * n * k_t).sqrt() / n;
+    for ((c, &f_n), slot) in contacts.iter().zip(normal_force).zip(out) {
+        let v_rel = ba.velocity_at(c.point) - bb.velocity_at(c.point);
+        let v_t = v_rel - c.normal * v_rel.dot(c.normal);
+        // Turn the carried displacement into the current tangent plane, keeping its length.
+        let mut xi = carried(old, &c.key);
+        let len = xi.length();
+        xi -= c.normal * xi.dot(c.normal);
+        if let Some(dir) = xi.try_normalize() {
+            xi = dir * len;
+        }
+        xi += v_t * dt;
+        let mut f_t = -xi * k_t - v_t * c_t;
+        let cap = law.friction * f_n;
+        let mag = f_t.length();
+        if mag > cap {
+            f_t *= if mag > 0.0 { cap / mag } else { 0.0 };
+            xi = -(f_t + v_t * c_t) / k_t;
+        }
+        let pair = PairForce::new(a, ba.x, b, bb.x, c.point, f_t);
+        *slot = (pair, xi, f_t.dot(v_t));
     }
-    Some((PairForce::new(a, ba.x, b, bb.x, c, f_t), xi))
 }

@@ -87,6 +87,9 @@ pub struct StepContext {
     pub contacts: Vec<Contact>,
     /// Normal force magnitude of each contact (0 where the spring is in tension).
     pub normal_force: Vec<f64>,
+    /// The force on body a of each contact, summed over the effects that act
+    /// at contacts (normal, then tangential).
+    pub contact_force: Vec<DVec3>,
     pub stats: StepStats,
     /// Where this step's contact detection spent its time.
     pub detection_times: DetectionTimes,
@@ -117,6 +120,11 @@ pub trait Effect: Send {
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces);
     /// Potential energy the effect stores (gravity, springs), for energy checks.
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
+        0.0
+    }
+    /// Work the effect has taken out of the bodies and not stored, since the
+    /// start of the run (dashpots, sliding): for energy bookkeeping.
+    fn dissipated(&self) -> f64 {
         0.0
     }
     /// What the effect carries from one step to the next, for a checkpoint

@@ -5,6 +5,7 @@ use super::TriMesh;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
+use std::collections::HashMap;
 
 /// An axis-aligned box of the given size centred on the origin.
 pub fn box_mesh(size: DVec3) -> TriMesh {
@@ -33,6 +34,31 @@ pub fn box_mesh(size: DVec3) -> TriMesh {
         [3, 7, 5], // x+
     ];
     TriMesh::new(v, t).expect("the box mesh is valid")
+}
+
+/// `m` with each triangle split into four at its edges' midpoints, `times`
+/// times over: the same shape, with 4^times as many triangles.
+pub fn subdivided(m: &TriMesh, times: usize) -> TriMesh {
+    let mut m = m.clone();
+    for _ in 0..times {
+        let mut vertices = m.vertices.clone();
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut at = |i: u32, j: u32, v: &mut Vec<DVec3>| {
+            *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                v.push((v[i as usize] + v[j as usize]) * 0.5);
+                (v.len() - 1) as u32
+            })
+        };
+        let mut triangles = Vec::with_capacity(4 * m.triangles.len());
+        for &[a, b, c] in &m.triangles {
+            let ab = at(a, b, &mut vertices);
+            let bc = at(b, c, &mut vertices);
+            let ca = at(c, a, &mut vertices);
+            triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+        }
+        m = TriMesh::new(vertices, triangles).expect("subdividing keeps a mesh valid");
+    }
+    m
 }
 
 /// A regular tetrahedron with circumradius `r`, centred on the origin.

@@ -30,7 +30,7 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
                     m.mesh
                         .positions
                         .chunks_exact(3)
-                        .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+                        .map(|p| DVec3::new(p[0], p[1], p[2])),
                 );
                 t.extend(
                     m.mesh

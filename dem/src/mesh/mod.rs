@@ -6,12 +6,14 @@
 //! which triangle or edge is at fault. A consistently inward-facing mesh is
 //! turned outward.
 
+mod features;
 mod generate;
 mod load;
 mod mass_properties;
 mod validate;
 
-pub use generate::{box_mesh, sphere_hull, tetrahedron};
+pub use features::{Crease, Face, Features, FLAT_ANGLE, NO_CREASE};
+pub use generate::{box_mesh, sphere_hull, subdivided, tetrahedron};
 pub use load::load_mesh;
 pub use mass_properties::MassProperties;
 
