@@ -83,6 +83,12 @@ fn boxed(size: DVec3, subdivide: usize) -> String {
     )
 }
 
+/// One row of the validation table docs/dem.md shows (printed with
+/// `--nocapture`).
+fn report(case: &str, limit: &str, measured: f64) {
+    println!("validation | {case} | {limit} | {measured:.3e} |");
+}
+
 fn run(sim: &mut Simulation, steps: u64) {
     for _ in 0..steps {
         sim.step();
@@ -141,6 +147,16 @@ fn elastic_oblique_impacts_of_hulls_keep_their_energy() {
             (sim.world.kinetic_energy() / before - 1.0).abs()
         };
         let (coarse, fine) = (error(4e-6), error(1e-6));
+        report(
+            &format!("elastic hull impact, offset {y} m, dt 4e-6 s: |ΔE|/E"),
+            "5e-3",
+            coarse,
+        );
+        report(
+            &format!("elastic hull impact, offset {y} m, dt 1e-6 s: |ΔE|/E"),
+            "converging",
+            fine,
+        );
         assert!(
             coarse <= 5e-3,
             "offset {y}, dt 4e-6: energy off by {coarse}"
@@ -186,6 +202,11 @@ fn elastic_impacts_at_random_angles_keep_their_energy() {
             worst = worst.max((sim.world.kinetic_energy() / before - 1.0).abs());
         }
     }
+    report(
+        &format!("{impacts} elastic hull impacts at random angles: worst |ΔE|/E"),
+        "1e-4",
+        worst,
+    );
     assert!(impacts >= 30, "only {impacts} of 40 hulls met");
     assert!(worst <= 1e-4, "kinetic energy off by {worst}");
 }
@@ -269,6 +290,11 @@ fn face_edge_and_corner_impacts_rebound_with_the_set_restitution() {
     for e in [0.35, 0.8] {
         for (what, rotation) in [("face", FACE), ("edge", EDGE), ("corner", corner)] {
             let (measured, _) = bounce(e, rotation, 1.0, DVec3::ZERO);
+            report(
+                &format!("{what} impact, e = {e}: |e_measured/e − 1|"),
+                "2e-2",
+                (measured / e - 1.0).abs(),
+            );
             assert!(
                 (measured - e).abs() <= 0.02 * e,
                 "{what}, e = {e}: measured {measured}"
@@ -291,6 +317,14 @@ fn impacts_do_not_depend_on_size_or_place() {
             (1.0, DVec3::new(1e4, -1e4, 1e4)),
         ] {
             let (e, _) = bounce(0.6, rotation, s, origin);
+            report(
+                &format!(
+                    "impact at scale {s:e}, {:e} m from the origin: |e − e_unit|",
+                    origin.length()
+                ),
+                "1e-6",
+                (e - reference).abs(),
+            );
             assert!(
                 (e - reference).abs() <= 1e-6,
                 "scale {s}, origin {origin}: e = {e}, {reference} at scale 1"
@@ -306,6 +340,11 @@ fn a_flat_landing_does_not_spin() {
     let yaw = DVec3::new(0.0, 0.0, 0.37);
     for e in [0.6, 0.95] {
         let (measured, spin) = bounce(e, yaw, 1.0, DVec3::new(0.021, 0.013, 0.0));
+        report(
+            &format!("flat landing off-centre, turned, no friction, e = {e}: ω R / v"),
+            "1e-4",
+            spin,
+        );
         assert!(spin <= 1e-4, "e = {e}: ω R / v = {spin}");
         assert!(
             (measured - e).abs() <= 0.02 * e,
@@ -323,6 +362,11 @@ fn elastic_landings_on_edges_and_corners_keep_their_energy() {
         let before = sim.world.kinetic_energy();
         through_contact(&mut sim);
         let ratio = sim.world.kinetic_energy() / before;
+        report(
+            &format!("elastic landing, turned by {rotation}: |ΔE|/E"),
+            "5e-3",
+            (ratio - 1.0).abs(),
+        );
         assert!((ratio - 1.0).abs() <= 5e-3, "{rotation}: {ratio}");
         assert!(
             sim.world.bodies[0].omega().length() > 1.0,
@@ -370,6 +414,16 @@ fn a_block_sticks_on_an_incline_steeper_than_friction_allows_to_slide() {
         run(&mut sim, 400_000);
         let b = &sim.world.bodies[0];
         let drift = (b.x - x).length();
+        report(
+            &format!("block on a {deg}° incline, μ = {mu}, 2 s: creep (m)"),
+            "1e-6",
+            drift,
+        );
+        report(
+            &format!("block on a {deg}° incline, μ = {mu}, 2 s: turn (rad)"),
+            "1e-4",
+            turned(q, b.q),
+        );
         assert!(drift <= 1e-6, "{deg} degrees: crept {drift} m");
         let turn = turned(q, b.q);
         assert!(turn <= 1e-4, "{deg} degrees: turned {turn} rad");
@@ -398,6 +452,16 @@ fn a_block_slides_at_the_coulomb_rate_without_turning() {
             "{deg} degrees: a = {a}, expected {expect}"
         );
         let turn = turned(q1, b.q);
+        report(
+            &format!("block sliding on a {deg}° incline, μ = {mu}: |a/a_Coulomb − 1|"),
+            "1e-2",
+            (a / expect - 1.0).abs(),
+        );
+        report(
+            &format!("block sliding on a {deg}° incline, μ = {mu}: turn (rad)"),
+            "1e-4",
+            turn,
+        );
         assert!(
             turn <= 1e-4,
             "{deg} degrees: turned {turn} rad while sliding"
@@ -453,6 +517,24 @@ fn stacks_of_boxes_stay_at_rest() {
                 *fastest = fastest.max(v.fold(0.0, f64::max));
             }
         }
+        let worst = |f: &dyn Fn(&dem::body::Body, &(DVec3, DQuat)) -> f64| {
+            sim.world
+                .bodies
+                .iter()
+                .zip(&start)
+                .map(|(b, s)| f(b, s))
+                .fold(0.0, f64::max)
+        };
+        report(
+            &format!("stack of 3 boxes, twist {twist} rad, 3 s: drift (m)"),
+            "1e-6",
+            worst(&|b, s| (b.x - s.0).length()),
+        );
+        report(
+            &format!("stack of 3 boxes, twist {twist} rad, 3 s: turn (rad)"),
+            "1e-4",
+            worst(&|b, s| turned(s.1, b.q)),
+        );
         for (i, (b, (x, q))) in sim.world.bodies.iter().zip(&start).enumerate() {
             let (drift, turn) = ((b.x - *x).length(), turned(*q, b.q));
             assert!(drift <= 1e-6, "twist {twist}, body {i}: drifted {drift} m");
@@ -471,6 +553,11 @@ fn stacks_of_boxes_stay_at_rest() {
 #[test]
 fn refining_the_mesh_does_not_change_the_physics() {
     let compare = |what: &str, a: f64, b: f64| {
+        report(
+            &format!("12 vs 192 triangles, {what}: relative difference"),
+            "1e-2",
+            (a - b).abs() / a.abs().max(b.abs()),
+        );
         assert!(
             (a - b).abs() <= 0.01 * a.abs().max(b.abs()),
             "{what}: {a} vs {b}"
@@ -478,6 +565,11 @@ fn refining_the_mesh_does_not_change_the_physics() {
     };
     let compare_vectors = |what: &str, a: DVec3, b: DVec3| {
         let scale = a.length().max(b.length());
+        report(
+            &format!("12 vs 192 triangles, {what}: relative difference"),
+            "1e-2",
+            (a - b).length() / scale,
+        );
         assert!((a - b).length() <= 0.01 * scale, "{what}: {a} vs {b}");
     };
     // Bounce: an off-centre corner landing, with friction.
