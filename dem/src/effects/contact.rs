@@ -40,6 +40,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::ops::Range;
 
+/// The contact effect: detection, then the [`NormalLaw`].
 pub struct ContactEffect {
     detector: Detector,
     pub kernel: Options,
@@ -47,6 +48,25 @@ pub struct ContactEffect {
     features: Vec<Features>,
     /// Per body: halo.
     halo: Vec<f64>,
+    pub law: NormalLaw,
+}
+
+impl ContactEffect {
+    /// `skin`: the detector's neighbour-list skin (0: none).
+    pub fn new(world: &World, kernel: Options, skin: f64, rotation: bool) -> Self {
+        ContactEffect {
+            detector: Detector::with_skin(skin),
+            kernel,
+            features: world.shapes.iter().map(Features::of).collect(),
+            halo: world.per_body(|m| m.halo),
+            law: NormalLaw::new(world, rotation),
+        }
+    }
+}
+
+/// The normal forces of given contacts (see the module doc), with the
+/// energy books of its springs and dashpots.
+pub struct NormalLaw {
     laws: MaterialPairs,
     /// Whether bodies turn: the dashpot's effective mass counts inertia then.
     rotation: bool,
@@ -61,20 +81,81 @@ pub struct ContactEffect {
     per_contact: Vec<(PairForce, f64, f64, f64)>,
 }
 
-impl ContactEffect {
-    /// `skin`: the detector's neighbour-list skin (0: none).
-    pub fn new(world: &World, kernel: Options, skin: f64, rotation: bool) -> Self {
-        ContactEffect {
-            detector: Detector::with_skin(skin),
-            kernel,
-            features: world.shapes.iter().map(Features::of).collect(),
-            halo: world.per_body(|m| m.halo),
+impl NormalLaw {
+    pub fn new(world: &World, rotation: bool) -> NormalLaw {
+        NormalLaw {
             laws: MaterialPairs::new(&world.materials),
             rotation,
             energy: 0.0,
             dissipated: 0.0,
             pairs: Vec::new(),
             per_contact: Vec::new(),
+        }
+    }
+
+    /// The normal force of each of `ctx.contacts` (grouped by body pair, all
+    /// of each pair's contacts present) into `ctx.normal_pairs`, its
+    /// magnitude into `ctx.normal_force` and `ctx.contact_force`.
+    pub fn apply(&mut self, world: &World, ctx: &mut StepContext) {
+        pair_ranges(&ctx.contacts, &mut self.pairs);
+        let (laws, rotation, contacts) = (&self.laws, self.rotation, &ctx.contacts);
+        self.per_contact.clear();
+        self.per_contact.resize(contacts.len(), Default::default());
+        // Each body pair writes its own contacts' slots.
+        let mut slots = Vec::with_capacity(self.pairs.len());
+        let mut rest = self.per_contact.as_mut_slice();
+        for r in &self.pairs {
+            let (head, tail) = rest.split_at_mut(r.len());
+            slots.push((r.clone(), head));
+            rest = tail;
+        }
+        slots
+            .into_par_iter()
+            .with_min_len(FORCE_GRAIN)
+            .for_each(|(range, out)| {
+                pair_forces(world, laws, rotation, &contacts[range], out);
+            });
+        ctx.normal_force.clear();
+        ctx.contact_force.clear();
+        ctx.normal_pairs.clear();
+        self.energy = 0.0;
+        for (pair, normal_force, energy, power) in &self.per_contact {
+            ctx.normal_pairs.push(*pair);
+            ctx.normal_force.push(*normal_force);
+            ctx.contact_force.push(pair.force);
+            self.energy += energy;
+            self.dissipated += power * ctx.dt;
+        }
+        ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
+    }
+
+    /// Spring energy of the last evaluation.
+    pub fn energy(&self) -> f64 {
+        self.energy
+    }
+
+    /// Work the dashpots have taken out of the bodies since the start.
+    pub fn dissipated(&self) -> f64 {
+        self.dissipated
+    }
+
+    /// What the law carries between steps: the springs' energy and the
+    /// dashpots' work.
+    pub fn state(&self) -> Vec<f64> {
+        vec![self.energy, self.dissipated]
+    }
+
+    pub fn restore(&mut self, values: &[f64]) -> Result<(), String> {
+        match values {
+            [energy, dissipated] if energy.is_finite() && dissipated.is_finite() => {
+                self.energy = *energy;
+                self.dissipated = *dissipated;
+                Ok(())
+            }
+            _ => Err(format!(
+                "the contact effect's state is two finite numbers (the springs' energy, \
+                 the dashpots' work), got {values:?}"
+            )),
         }
     }
 }
@@ -142,63 +223,28 @@ impl Effect for ContactEffect {
         );
         ctx.stats.detection = det;
         ctx.detection_times = self.detector.last_times();
-        pair_ranges(&ctx.contacts, &mut self.pairs);
-        let (laws, rotation, contacts) = (&self.laws, self.rotation, &ctx.contacts);
-        self.per_contact.clear();
-        self.per_contact.resize(contacts.len(), Default::default());
-        // Each body pair writes its own contacts' slots.
-        let mut slots = Vec::with_capacity(self.pairs.len());
-        let mut rest = self.per_contact.as_mut_slice();
-        for r in &self.pairs {
-            let (head, tail) = rest.split_at_mut(r.len());
-            slots.push((r.clone(), head));
-            rest = tail;
-        }
-        slots
-            .into_par_iter()
-            .with_min_len(FORCE_GRAIN)
-            .for_each(|(range, out)| {
-                pair_forces(world, laws, rotation, &contacts[range], out);
-            });
-        ctx.normal_force.clear();
-        ctx.contact_force.clear();
-        self.energy = 0.0;
-        for (pair, normal_force, energy, power) in &self.per_contact {
+        self.law.apply(world, ctx);
+        for pair in &ctx.normal_pairs {
             forces.add_pair(pair);
-            ctx.normal_force.push(*normal_force);
-            ctx.contact_force.push(pair.force);
-            self.energy += energy;
-            self.dissipated += power * ctx.dt;
         }
-        ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
     }
 
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.energy
+        self.law.energy
     }
 
     fn dissipated(&self) -> f64 {
-        self.dissipated
+        self.law.dissipated
     }
 
     /// The springs' energy (for [`Effect::potential_energy`]: contacts are
     /// found afresh every step) and the dashpots' work so far.
     fn state(&self) -> Option<Vec<f64>> {
-        Some(vec![self.energy, self.dissipated])
+        Some(self.law.state())
     }
 
     fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
-        match values {
-            [energy, dissipated] if energy.is_finite() && dissipated.is_finite() => {
-                self.energy = *energy;
-                self.dissipated = *dissipated;
-                Ok(())
-            }
-            _ => Err(format!(
-                "the contact effect's state is two finite numbers (the springs' energy, \
-                 the dashpots' work), got {values:?}"
-            )),
-        }
+        self.law.restore(values)
     }
 }
 

@@ -76,6 +76,38 @@ impl Effect for FrictionEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
+        self.tangential(world, ctx);
+        for pair in &ctx.tangential_pairs {
+            forces.add_pair(pair);
+        }
+    }
+
+    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
+        self.energy
+    }
+
+    /// Work taken out of the bodies less what the springs hold.
+    fn dissipated(&self) -> f64 {
+        self.work - self.energy
+    }
+
+    /// The work so far, the springs' energy, then per contact: a, b, the
+    /// feature kind and indices, and ξ.
+    fn state(&self) -> Option<Vec<f64>> {
+        Some(self.values())
+    }
+
+    fn restore(&mut self, values: &[f64], world: &World) -> Result<(), String> {
+        self.restore_values(values, world.bodies.len())
+    }
+}
+
+impl FrictionEffect {
+    /// The friction force of each of `ctx.contacts` (grouped by body pair,
+    /// all of each pair's contacts present, with `ctx.normal_force`) into
+    /// `ctx.tangential_pairs`, added to `ctx.contact_force`; the history
+    /// goes on with these contacts.
+    pub fn tangential(&mut self, world: &World, ctx: &mut StepContext) {
         pair_ranges(&ctx.contacts, &mut self.pairs);
         // Each pair's entries in the history: one walk along both lists,
         // both sorted by body pair.
@@ -113,8 +145,9 @@ impl Effect for FrictionEffect {
             });
         self.next.clear();
         self.energy = 0.0;
+        ctx.tangential_pairs.clear();
         for (k, (c, (force, xi, power))) in ctx.contacts.iter().zip(&self.results).enumerate() {
-            forces.add_pair(force);
+            ctx.tangential_pairs.push(*force);
             ctx.contact_force[k] += force.force;
             self.next.push(((c.a, c.b, c.key), *xi));
             let law = self
@@ -127,18 +160,9 @@ impl Effect for FrictionEffect {
         std::mem::swap(&mut self.history, &mut self.next);
     }
 
-    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.energy
-    }
-
-    /// Work taken out of the bodies less what the springs hold.
-    fn dissipated(&self) -> f64 {
-        self.work - self.energy
-    }
-
     /// The work so far, the springs' energy, then per contact: a, b, the
     /// feature kind and indices, and ξ.
-    fn state(&self) -> Option<Vec<f64>> {
+    pub fn values(&self) -> Vec<f64> {
         let entry = |&((a, b, k), xi): &(Key, DVec3)| {
             [
                 a as f64,
@@ -152,14 +176,13 @@ impl Effect for FrictionEffect {
             ]
         };
         let head = [self.work, self.energy];
-        Some(
-            head.into_iter()
-                .chain(self.history.iter().flat_map(entry))
-                .collect(),
-        )
+        head.into_iter()
+            .chain(self.history.iter().flat_map(entry))
+            .collect()
     }
 
-    fn restore(&mut self, values: &[f64], world: &World) -> Result<(), String> {
+    /// Takes back what [`FrictionEffect::values`] gave, in a world of `n` bodies.
+    pub fn restore_values(&mut self, values: &[f64], n: usize) -> Result<(), String> {
         let fail = || {
             Err(format!(
                 "the friction effect's state holds the work, the springs' energy, then 8 \
@@ -173,7 +196,6 @@ impl Effect for FrictionEffect {
         if rest.len() % 8 != 0 || !work.is_finite() || !energy.is_finite() {
             return fail();
         }
-        let n = world.bodies.len();
         let index = |v: f64, below: usize| {
             (v >= 0.0 && v.fract() == 0.0 && v < below as f64).then_some(v as usize)
         };

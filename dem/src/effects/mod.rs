@@ -10,7 +10,7 @@ mod damping;
 mod friction;
 mod gravity;
 
-pub use contact::ContactEffect;
+pub use contact::{ContactEffect, NormalLaw};
 pub use damping::DampingEffect;
 pub use friction::FrictionEffect;
 pub use gravity::GravityEffect;
@@ -90,6 +90,10 @@ pub struct StepContext {
     /// The force on body a of each contact, summed over the effects that act
     /// at contacts (normal, then tangential).
     pub contact_force: Vec<DVec3>,
+    /// Per contact: its normal force, and its tangential force (friction),
+    /// as force pairs on its two bodies.
+    pub normal_pairs: Vec<PairForce>,
+    pub tangential_pairs: Vec<PairForce>,
     pub stats: StepStats,
     /// Where this step's contact detection spent its time.
     pub detection_times: DetectionTimes,
