@@ -5,6 +5,7 @@
 //! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
 //! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
 //!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
+//! - [`ledger`]: energy books whose sums do not depend on the order of their terms.
 //! - [`checkpoint`]: a run's whole state, to stop it and resume it unchanged.
 //! - [`timing`]: where a run's time goes, by section of the step pipeline.
 //! - [`busy_workers`]: keeps the thread pool polling through a run of short
@@ -17,6 +18,7 @@ pub mod contact;
 pub mod distance;
 pub mod effects;
 pub mod integrate;
+pub mod ledger;
 pub mod material;
 pub mod mesh;
 mod prefetch;

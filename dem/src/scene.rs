@@ -32,6 +32,11 @@
 //! material = "glass"
 //! shape = { kind = "box", size = [0.2, 0.2, 0.01] }
 //! position = [0.0, 0.0, -0.005]
+//!
+//! [parallel]             # under mpirun (the command line wins)
+//! partitioner = "zoltan-rcb"   # zoltan-rib, zoltan-hsfc, metis, rcb
+//! repartition_every = 100      # steps (0: only at the start)
+//! exchange = "nonblocking"     # or "blocking"
 //! ```
 
 use crate::body::Body;
@@ -79,7 +84,22 @@ struct SceneFile {
     obstacles: Vec<Spanned<ObstacleSpec>>,
     #[serde(default)]
     kernel: Option<Spanned<KernelSpec>>,
+    #[serde(default)]
+    parallel: Option<Spanned<Parallel>>,
 }
+
+/// How a run under mpirun is split (`[parallel]`), names as the command line takes them.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Parallel {
+    pub partitioner: Option<String>,
+    pub repartition_every: Option<u64>,
+    pub exchange: Option<String>,
+}
+
+/// The partitioners and exchanges `[parallel]` may name.
+const PARTITIONERS: [&str; 5] = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+const EXCHANGES: [&str; 2] = ["nonblocking", "blocking"];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -319,6 +339,7 @@ pub struct Scene {
     pub kernel: Options,
     /// Set when the step exceeds the stable one and the scene allowed it.
     pub warnings: Vec<String>,
+    pub parallel: Parallel,
 }
 
 struct Ctx<'a> {
@@ -718,6 +739,37 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             }
         }
     }
+    let parallel = match spec.parallel {
+        None => Parallel::default(),
+        Some(p) => {
+            let span = p.span();
+            let p = p.into_inner();
+            let known = |name: &Option<String>, list: &[&str]| {
+                name.as_ref().is_none_or(|n| list.contains(&n.as_str()))
+            };
+            if !known(&p.partitioner, &PARTITIONERS) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "parallel.partitioner `{}` is none of {}",
+                        p.partitioner.unwrap_or_default(),
+                        PARTITIONERS.join(", ")
+                    ),
+                );
+            }
+            if !known(&p.exchange, &EXCHANGES) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "parallel.exchange `{}` is none of {}",
+                        p.exchange.unwrap_or_default(),
+                        EXCHANGES.join(", ")
+                    ),
+                );
+            }
+            p
+        }
+    };
     Ok(Scene {
         world,
         effects,
@@ -727,6 +779,7 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
         stable_dt,
         kernel,
         warnings,
+        parallel,
     })
 }
 

@@ -48,6 +48,20 @@ impl Energies {
     }
 }
 
+/// A simulation taken apart ([`Simulation::into_parts`]), for a caller that
+/// steps it in its own way (split across ranks).
+pub struct Parts {
+    pub world: World,
+    pub dt: f64,
+    pub rotation: bool,
+    /// The declared effects, in pipeline order.
+    pub effects: Vec<Box<dyn Effect>>,
+    /// Per shape: the largest distance of a vertex from the body's origin.
+    pub shape_radius: Vec<f64>,
+    /// The forces of the last evaluation.
+    pub forces: Forces,
+}
+
 /// A running simulation.
 pub struct Simulation {
     /// The bodies move only by [`Simulation::step`]; after moving any by hand,
@@ -190,10 +204,21 @@ impl Simulation {
                     l: b.l,
                 })
                 .collect(),
-            force: self.forces.force.clone(),
-            torque: self.forces.torque.clone(),
+            // Obstacles do not move: what pushes on them is no part of the
+            // state (and split across ranks, no one rank sums it).
+            force: self.loads(&self.forces.force),
+            torque: self.loads(&self.forces.torque),
             effects: effects.collect(),
         }
+    }
+
+    /// Per body, `of` for particles and zero for obstacles.
+    fn loads(&self, of: &[DVec3]) -> Vec<DVec3> {
+        let bodies = self.world.bodies.iter();
+        of.iter()
+            .zip(bodies)
+            .map(|(f, b)| if b.is_static() { DVec3::ZERO } else { *f })
+            .collect()
     }
 
     /// The effects the scene declares, on the scene's world; forces not yet evaluated.
@@ -218,7 +243,7 @@ impl Simulation {
             effects.push(Box::new(DampingEffect {
                 linear,
                 angular,
-                dissipated: 0.0,
+                ledger: Default::default(),
             }));
         }
         let shape_radius = world
@@ -246,6 +271,28 @@ impl Simulation {
         sim
     }
 
+    /// The simulation's parts: its world, effects (with their state) and
+    /// the forces of its last evaluation.
+    pub fn into_parts(self) -> Parts {
+        Parts {
+            world: self.world,
+            dt: self.dt,
+            rotation: self.rotation,
+            effects: self.effects,
+            shape_radius: self.shape_radius,
+            forces: self.forces,
+        }
+    }
+
+    /// Makes `contacts`, with the force on body a of each, the last
+    /// evaluation's (for output of a run stepped elsewhere, whose state this
+    /// simulation was resumed from).
+    pub fn show_contacts(&mut self, contacts: Vec<crate::contact::Contact>, forces: Vec<DVec3>) {
+        assert_eq!(contacts.len(), forces.len(), "a force per contact");
+        self.ctx.contacts = contacts;
+        self.ctx.contact_force = forces;
+    }
+
     /// Names of the effects in the pipeline, in order (rotation is an integration switch).
     pub fn effect_names(&self) -> Vec<&'static str> {
         let mut v: Vec<&'static str> = self.effects.iter().map(|e| e.name()).collect();
@@ -264,6 +311,9 @@ impl Simulation {
         for (k, e) in self.effects.iter_mut().enumerate() {
             let start = Instant::now();
             e.apply(&self.world, &mut self.ctx, &mut self.forces);
+            if let Some(ledger) = e.ledger_mut() {
+                ledger.close();
+            }
             self.timings.effects[k].1 += seconds_since(start);
         }
         self.timings.detection += self.ctx.detection_times;

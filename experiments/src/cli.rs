@@ -26,7 +26,7 @@ pub enum Command {
     Kernels(KernelsArgs),
     /// Partition a synthetic workload with one partitioner (run under mpirun).
     Partition(PartitionArgs),
-    /// Run a DEM scene (TOML) on this node.
+    /// Run a DEM scene (TOML): on this node, or under `mpirun -np P` split across P ranks.
     Run(RunArgs),
     /// Thread scaling of a DEM scene: runs at each thread count, alternating, and the
     /// ratio of the median times, measured side by side in one invocation.
@@ -103,6 +103,34 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+    /// Under mpirun: how particles are assigned to ranks (zoltan-rcb,
+    /// zoltan-rib, zoltan-hsfc, metis, rcb; default: the scene's
+    /// [parallel] partitioner, else zoltan-rcb).
+    #[arg(long)]
+    pub partitioner: Option<partition::Backend>,
+    /// Under mpirun: repartition every K steps (0: only at the start;
+    /// default: the scene's [parallel] repartition_every, else 0).
+    #[arg(long)]
+    pub repartition_every: Option<u64>,
+    /// Under mpirun: ghost exchange overlapping the detection among owned
+    /// bodies (nonblocking) or completed before it (blocking; default: the
+    /// scene's, else nonblocking).
+    #[arg(long)]
+    pub exchange: Option<distributed::Exchange>,
+    /// Under mpirun: write per-rank metrics as JSON lines to FILE.
+    #[arg(long)]
+    pub metrics: Option<PathBuf>,
+    /// Metrics every N steps (with --metrics).
+    #[arg(long, default_value_t = 1, value_parser = at_least_one_u64)]
+    pub metrics_every: u64,
+}
+
+fn at_least_one_u64(s: &str) -> Result<u64, String> {
+    match s.parse::<u64>() {
+        Ok(0) => Err("must be at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(e.to_string()),
+    }
 }
 
 #[derive(Args, Debug)]

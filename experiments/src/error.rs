@@ -26,6 +26,20 @@ impl CliError {
         }
     }
 
+    /// An error another MPI rank reports: this rank ends with its code,
+    /// silently, so that the message is printed once.
+    pub fn reported_elsewhere(code: u8) -> Self {
+        CliError {
+            message: String::new(),
+            code,
+        }
+    }
+
+    /// Whether the message is for this rank to print.
+    pub fn is_reported_here(&self) -> bool {
+        !self.message.is_empty()
+    }
+
     pub fn exit_code(&self) -> u8 {
         self.code
     }

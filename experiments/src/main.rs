@@ -11,6 +11,7 @@ mod pairs_csv;
 mod partition_cmd;
 mod plot;
 mod run_cmd;
+mod run_mpi;
 mod scaling_cmd;
 mod sections;
 mod stats;
@@ -32,7 +33,9 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("tridem: error: {e:#}");
+            if e.is_reported_here() {
+                eprintln!("tridem: error: {e:#}");
+            }
             ExitCode::from(e.exit_code())
         }
     }

@@ -15,6 +15,12 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub fn run(args: &RunArgs) -> CliResult {
+    let universe =
+        mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
+    let comm = universe.world();
+    if mpi::traits::Communicator::size(&comm) > 1 {
+        return crate::run_mpi::run(args, &comm);
+    }
     let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
     for w in &scene.warnings {
         eprintln!("tridem: warning: {w}");

@@ -106,7 +106,8 @@ impl BroadPhase {
     /// - local-ghost: the owned part of g and the ghost part of h. The pair of
     ///   g's ghosts with h's owned triangles is the business of the rank
     ///   owning g's triangles, so that each triangle pair is examined on
-    ///   exactly one rank.
+    ///   exactly one rank;
+    /// - across: the owned part of one and the ghost part of the other.
     ///
     /// Sorted, each pair once: a function of the boxes alone.
     ///
@@ -179,6 +180,10 @@ impl BroadPhase {
             pairs.extend_from_slice(&found);
         }
         sort_pairs(pairs, &mut self.unsorted, &mut self.pair_counts);
+        // Across, two groups may meet owned-ghost and ghost-owned.
+        if phase == Phase::Across {
+            pairs.dedup();
+        }
         pairs
     }
 
@@ -201,7 +206,7 @@ impl BroadPhase {
                     part: Part::Owned,
                 });
             }
-            if phase == Phase::LocalGhost && !g.ghost.is_empty() {
+            if phase != Phase::LocalLocal && !g.ghost.is_empty() {
                 list.push(Entry {
                     bounds: g.ghost_box.inflated(pad),
                     group: k,
@@ -331,6 +336,9 @@ fn pair_of(x: &Entry, y: &Entry, phase: Phase) -> Option<(usize, usize)> {
         (Phase::LocalLocal, Part::Owned, Part::Owned) => Some((k.min(l), k.max(l))),
         (Phase::LocalGhost, Part::Owned, Part::Ghost) if k < l => Some((k, l)),
         (Phase::LocalGhost, Part::Ghost, Part::Owned) if l < k => Some((l, k)),
+        (Phase::Across, Part::Owned, Part::Ghost) | (Phase::Across, Part::Ghost, Part::Owned) => {
+            Some((k.min(l), k.max(l)))
+        }
         _ => None,
     }
 }
@@ -433,15 +441,16 @@ mod tests {
         for a in 0..g.len() {
             for b in a + 1..g.len() {
                 let moving = |k: usize| !bodies[g[k].body as usize].is_static();
-                let other = match phase {
-                    Phase::LocalLocal => g[b].owned_box,
-                    Phase::LocalGhost => g[b].ghost_box,
+                let meet = |x: &Bounds, y: &Bounds| !x.is_empty() && !y.is_empty() && x.overlaps(y);
+                let (ga, gb) = (&g[a], &g[b]);
+                let found = match phase {
+                    Phase::LocalLocal => meet(&ga.owned_box, &gb.owned_box),
+                    Phase::LocalGhost => meet(&ga.owned_box, &gb.ghost_box),
+                    Phase::Across => {
+                        meet(&ga.owned_box, &gb.ghost_box) || meet(&ga.ghost_box, &gb.owned_box)
+                    }
                 };
-                if (moving(a) || moving(b))
-                    && !g[a].owned_box.is_empty()
-                    && !other.is_empty()
-                    && g[a].owned_box.overlaps(&other)
-                {
+                if (moving(a) || moving(b)) && found {
                     out.insert((a, b));
                 }
             }
@@ -463,7 +472,7 @@ mod tests {
                     // One broad phase through both phases and moving bodies:
                     // the kept order must never change the answer.
                     let mut broad = BroadPhase::default();
-                    for phase in [Phase::LocalLocal, Phase::LocalGhost] {
+                    for phase in [Phase::LocalLocal, Phase::LocalGhost, Phase::Across] {
                         for shift in [0.0, 0.2, 0.2, 1.5, 0.0] {
                             let (set, bodies) = scene(seed, 150, shift);
                             let reference: Vec<_> =

@@ -49,7 +49,7 @@ mod triangle_set;
 
 pub use bounds::Bounds;
 pub use features::{Contact, FeatureKey, FeatureKind, WeightGradient};
-pub use triangle_set::{BodyGroup, SetTriangle, TriangleKey, TriangleSet};
+pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 
 use crate::distance::{
     distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Triangle,
@@ -81,6 +81,11 @@ pub enum Phase {
     /// An owned triangle of the lower-numbered body with a ghost of the other
     /// (the converse pairs belong to the rank owning the ghost).
     LocalGhost,
+    /// Owned triangles of one body with the ghost triangles of the other, in
+    /// either order: for sets in which each body is wholly owned or wholly a
+    /// ghost, when both ranks of a pair across a cut compute it (each then
+    /// acts on its own body, and no force travels back).
+    Across,
 }
 
 /// Counts of one detection pass.
@@ -463,9 +468,16 @@ impl Task {
             set.fill_group(h, world, &mut self.vertices);
             let (ga, gb) = (&groups[g], &groups[h]);
             let (a_part, a_box) = (ga.owned.clone(), set.owned_box(g));
-            let (b_part, b_box) = match phase {
-                Phase::LocalLocal => (gb.owned.clone(), set.owned_box(h)),
-                Phase::LocalGhost => (gb.ghost.clone(), gb.ghost_box),
+            let (a_part, a_box, b_part, b_box) = match phase {
+                Phase::LocalLocal => (a_part, a_box, gb.owned.clone(), set.owned_box(h)),
+                Phase::LocalGhost => (a_part, a_box, gb.ghost.clone(), gb.ghost_box),
+                Phase::Across if ga.owned.is_empty() => (
+                    ga.ghost.clone(),
+                    ga.ghost_box,
+                    gb.owned.clone(),
+                    set.owned_box(h),
+                ),
+                Phase::Across => (a_part, a_box, gb.ghost.clone(), gb.ghost_box),
             };
             // Pairs from a neighbour list (see `Detector::detect_moved`) may
             // have drifted apart; straight from the broad phase they overlap.

@@ -178,6 +178,24 @@ fn world_vertices(body: &Body, mesh: &TriMesh, out: &mut Vec<DVec3>) {
     out.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
 }
 
+/// Body `i`'s triangles in world space, appended to `out` with their keys:
+/// the same bits as the set that follows the world computes, so that a rank
+/// holding a copy of a body's pose finds what one node finds.
+pub fn body_triangles(world: &World, i: usize, out: &mut Vec<(TriangleKey, Triangle)>) {
+    let body = &world.bodies[i];
+    let mesh = &world.shapes[body.shape];
+    let mut vertices = Vec::with_capacity(mesh.vertices.len());
+    world_vertices(body, mesh, &mut vertices);
+    out.extend(mesh.triangles.iter().enumerate().map(|(k, t)| {
+        let key = TriangleKey {
+            body: i as u32,
+            index: k as u32,
+        };
+        let v = |j: usize| vertices[t[j] as usize];
+        (key, [v(0), v(1), v(2)])
+    }));
+}
+
 /// Bodies per parallel task when the set follows the world: small, because
 /// the work per body is uneven (static bodies cost nothing after the first
 /// step and are often numbered last, so coarse shares leave a thread idle).

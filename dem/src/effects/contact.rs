@@ -33,6 +33,7 @@ use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
 use crate::body::Body;
 use crate::contact::{Contact, Detector};
 use crate::distance::Options;
+use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
 use crate::mesh::Features;
 use crate::world::World;
@@ -70,10 +71,9 @@ pub struct NormalLaw {
     laws: MaterialPairs,
     /// Whether bodies turn: the dashpot's effective mass counts inertia then.
     rotation: bool,
-    /// Spring energy of the last evaluation (for energy checks).
-    energy: f64,
-    /// Work the dashpots have taken out of the bodies since the start.
-    dissipated: f64,
+    /// The springs' energy at the last evaluation, and the work the
+    /// dashpots have taken out of the bodies since the start.
+    pub ledger: Ledger,
     /// Per body pair in contact: its contacts.
     pairs: Vec<Range<usize>>,
     /// Per contact: the force pair, the normal force, the spring energy and
@@ -86,8 +86,7 @@ impl NormalLaw {
         NormalLaw {
             laws: MaterialPairs::new(&world.materials),
             rotation,
-            energy: 0.0,
-            dissipated: 0.0,
+            ledger: Ledger::default(),
             pairs: Vec::new(),
             per_contact: Vec::new(),
         }
@@ -118,38 +117,39 @@ impl NormalLaw {
         ctx.normal_force.clear();
         ctx.contact_force.clear();
         ctx.normal_pairs.clear();
-        self.energy = 0.0;
-        for (pair, normal_force, energy, power) in &self.per_contact {
+        for (k, (pair, normal_force, energy, power)) in self.per_contact.iter().enumerate() {
             ctx.normal_pairs.push(*pair);
             ctx.normal_force.push(*normal_force);
             ctx.contact_force.push(pair.force);
-            self.energy += energy;
-            self.dissipated += power * ctx.dt;
+            if ctx.books_contact(k) {
+                self.ledger.step_stored.add(*energy);
+                self.ledger.step_taken.add(power * ctx.dt);
+            }
         }
         ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
     }
 
-    /// Spring energy of the last evaluation.
+    /// Spring energy of the last evaluation (once its books are closed).
     pub fn energy(&self) -> f64 {
-        self.energy
+        self.ledger.stored
     }
 
     /// Work the dashpots have taken out of the bodies since the start.
     pub fn dissipated(&self) -> f64 {
-        self.dissipated
+        self.ledger.taken
     }
 
     /// What the law carries between steps: the springs' energy and the
     /// dashpots' work.
     pub fn state(&self) -> Vec<f64> {
-        vec![self.energy, self.dissipated]
+        vec![self.ledger.stored, self.ledger.taken]
     }
 
     pub fn restore(&mut self, values: &[f64]) -> Result<(), String> {
         match values {
             [energy, dissipated] if energy.is_finite() && dissipated.is_finite() => {
-                self.energy = *energy;
-                self.dissipated = *dissipated;
+                self.ledger.stored = *energy;
+                self.ledger.taken = *dissipated;
                 Ok(())
             }
             _ => Err(format!(
@@ -213,16 +213,18 @@ impl Effect for ContactEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        let det = self.detector.detect_moved(
-            world,
-            &self.features,
-            &self.halo,
-            &self.kernel,
-            ctx.moved,
-            &mut ctx.contacts,
-        );
-        ctx.stats.detection = det;
-        ctx.detection_times = self.detector.last_times();
+        if !ctx.contacts_found {
+            let det = self.detector.detect_moved(
+                world,
+                &self.features,
+                &self.halo,
+                &self.kernel,
+                ctx.moved,
+                &mut ctx.contacts,
+            );
+            ctx.stats.detection = det;
+            ctx.detection_times = self.detector.last_times();
+        }
         self.law.apply(world, ctx);
         for pair in &ctx.normal_pairs {
             forces.add_pair(pair);
@@ -230,11 +232,15 @@ impl Effect for ContactEffect {
     }
 
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.law.energy
+        self.law.energy()
     }
 
     fn dissipated(&self) -> f64 {
-        self.law.dissipated
+        self.law.dissipated()
+    }
+
+    fn ledger_mut(&mut self) -> Option<&mut Ledger> {
+        Some(&mut self.law.ledger)
     }
 
     /// The springs' energy (for [`Effect::potential_energy`]: contacts are

@@ -1,13 +1,14 @@
 //! Global viscous damping: F = −γ m v, τ = −γ_rot L (rates in 1/s).
 
 use super::{Effect, Forces, StepContext};
+use crate::ledger::Ledger;
 use crate::world::World;
 
 pub struct DampingEffect {
     pub linear: f64,
     pub angular: f64,
     /// Work taken out of the bodies since the start.
-    pub dissipated: f64,
+    pub ledger: Ledger,
 }
 
 impl Effect for DampingEffect {
@@ -16,31 +17,36 @@ impl Effect for DampingEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        let mut power = 0.0;
         for (i, b) in world.bodies.iter().enumerate() {
             if !b.is_static() {
                 let (f, t) = (b.v * (self.linear * b.mass), b.l * self.angular);
                 forces.force[i] -= f;
                 forces.torque[i] -= t;
-                power += f.dot(b.v) + t.dot(b.omega());
+                if ctx.books_body(i) {
+                    let power = f.dot(b.v) + t.dot(b.omega());
+                    self.ledger.step_taken.add(power * ctx.dt);
+                }
             }
         }
-        self.dissipated += power * ctx.dt;
     }
 
     fn dissipated(&self) -> f64 {
-        self.dissipated
+        self.ledger.taken
+    }
+
+    fn ledger_mut(&mut self) -> Option<&mut Ledger> {
+        Some(&mut self.ledger)
     }
 
     /// The work dissipated so far.
     fn state(&self) -> Option<Vec<f64>> {
-        Some(vec![self.dissipated])
+        Some(vec![self.ledger.taken])
     }
 
     fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
         match values {
             [w] if w.is_finite() => {
-                self.dissipated = *w;
+                self.ledger.taken = *w;
                 Ok(())
             }
             _ => Err(format!(

@@ -25,6 +25,7 @@
 use super::contact::pair_ranges;
 use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
 use crate::contact::{Contact, FeatureKey, FeatureKind};
+use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
 use crate::world::World;
 use glam::DVec3;
@@ -46,13 +47,18 @@ pub struct FrictionEffect {
     /// Per contact: the force pair, the displacement carried on, and the
     /// tangential force's power.
     results: Vec<(PairForce, DVec3, f64)>,
-    /// Work the tangential forces have taken out of the bodies since the start.
-    work: f64,
-    /// Energy of the tangential springs now.
-    energy: f64,
+    /// The tangential springs' energy now, and the work the tangential
+    /// forces have taken out of the bodies since the start.
+    ledger: Ledger,
 }
 
 impl FrictionEffect {
+    /// The layout of [`FrictionEffect::values`]: a head of this many
+    /// numbers, then rows of `STATE_ROW`, one per contact, starting with its
+    /// bodies a and b.
+    pub const STATE_HEAD: usize = 2;
+    pub const STATE_ROW: usize = 8;
+
     pub fn new(world: &World) -> Self {
         FrictionEffect {
             laws: MaterialPairs::new(&world.materials),
@@ -61,8 +67,7 @@ impl FrictionEffect {
             pairs: Vec::new(),
             carried: Vec::new(),
             results: Vec::new(),
-            work: 0.0,
-            energy: 0.0,
+            ledger: Ledger::default(),
         }
     }
 }
@@ -83,12 +88,16 @@ impl Effect for FrictionEffect {
     }
 
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.energy
+        self.ledger.stored
     }
 
     /// Work taken out of the bodies less what the springs hold.
     fn dissipated(&self) -> f64 {
-        self.work - self.energy
+        self.ledger.taken - self.ledger.stored
+    }
+
+    fn ledger_mut(&mut self) -> Option<&mut Ledger> {
+        Some(&mut self.ledger)
     }
 
     /// The work so far, the springs' energy, then per contact: a, b, the
@@ -144,17 +153,19 @@ impl FrictionEffect {
                 pair_friction(world, laws, c, f, old, dt, out);
             });
         self.next.clear();
-        self.energy = 0.0;
         ctx.tangential_pairs.clear();
         for (k, (c, (force, xi, power))) in ctx.contacts.iter().zip(&self.results).enumerate() {
             ctx.tangential_pairs.push(*force);
             ctx.contact_force[k] += force.force;
             self.next.push(((c.a, c.b, c.key), *xi));
-            let law = self
-                .laws
-                .get(world.bodies[c.a].material, world.bodies[c.b].material);
-            self.energy += 0.5 * TANGENTIAL_RATIO * law.stiffness * xi.length_squared();
-            self.work -= power * dt;
+            if ctx.booked_contacts.get(k).copied().unwrap_or(true) {
+                let law = self
+                    .laws
+                    .get(world.bodies[c.a].material, world.bodies[c.b].material);
+                let stored = 0.5 * TANGENTIAL_RATIO * law.stiffness * xi.length_squared();
+                self.ledger.step_stored.add(stored);
+                self.ledger.step_taken.add(-power * dt);
+            }
         }
         ctx.stats.tangential_evaluations += ctx.contacts.len() as u64;
         std::mem::swap(&mut self.history, &mut self.next);
@@ -175,7 +186,7 @@ impl FrictionEffect {
                 xi.z,
             ]
         };
-        let head = [self.work, self.energy];
+        let head = [self.ledger.taken, self.ledger.stored];
         head.into_iter()
             .chain(self.history.iter().flat_map(entry))
             .collect()
@@ -231,8 +242,8 @@ impl FrictionEffect {
                 }
             }
         }
-        self.work = *work;
-        self.energy = *energy;
+        self.ledger.taken = *work;
+        self.ledger.stored = *energy;
         Ok(())
     }
 }

@@ -16,6 +16,7 @@ pub use friction::FrictionEffect;
 pub use gravity::GravityEffect;
 
 use crate::contact::{Contact, DetectionStats};
+use crate::ledger::Ledger;
 use crate::timing::DetectionTimes;
 use crate::world::World;
 use glam::DVec3;
@@ -94,6 +95,16 @@ pub struct StepContext {
     /// as force pairs on its two bodies.
     pub normal_pairs: Vec<PairForce>,
     pub tangential_pairs: Vec<PairForce>,
+    /// Split across ranks: whose terms this rank enters in the effects'
+    /// books, per body and per contact (empty: all). A rank holds copies of
+    /// other ranks' bodies, and a contact across a cut is computed on both
+    /// sides; each term is booked on one rank only.
+    pub booked_bodies: Vec<bool>,
+    pub booked_contacts: Vec<bool>,
+    /// Whether the caller found this evaluation's contacts (split across
+    /// ranks, where detection needs other ranks' bodies): the contact effect
+    /// then applies its law to `contacts` as they are.
+    pub contacts_found: bool,
     pub stats: StepStats,
     /// Where this step's contact detection spent its time.
     pub detection_times: DetectionTimes,
@@ -108,6 +119,18 @@ pub struct StepStats {
     pub detection: DetectionStats,
     pub normal_evaluations: u64,
     pub tangential_evaluations: u64,
+}
+
+impl StepContext {
+    /// Whether body i's terms are booked here.
+    pub fn books_body(&self, i: usize) -> bool {
+        self.booked_bodies.get(i).copied().unwrap_or(true)
+    }
+
+    /// Whether contact k's terms are booked here.
+    pub fn books_contact(&self, k: usize) -> bool {
+        self.booked_contacts.get(k).copied().unwrap_or(true)
+    }
 }
 
 impl std::ops::AddAssign for StepStats {
@@ -130,6 +153,11 @@ pub trait Effect: Send {
     /// start of the run (dashpots, sliding): for energy bookkeeping.
     fn dissipated(&self) -> f64 {
         0.0
+    }
+    /// The effect's energy books, whose terms each evaluation enters and the
+    /// caller closes (after merging the ranks' terms, split across ranks).
+    fn ledger_mut(&mut self) -> Option<&mut Ledger> {
+        None
     }
     /// What the effect carries from one step to the next, for a checkpoint
     /// (`None`: nothing, each step starts afresh).
