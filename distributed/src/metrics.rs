@@ -63,6 +63,15 @@ impl StepMetrics {
         ]
     }
 
+    /// Takes in the next step of an interval: its counts and seconds add
+    /// up, the owned bodies and triangles are the step's, as is the step number.
+    pub fn extend_interval(&mut self, o: &StepMetrics) {
+        self.accumulate(o);
+        self.owned_bodies = o.owned_bodies;
+        self.owned_triangles = o.owned_triangles;
+        self.step = o.step;
+    }
+
     /// Adds another step's counts and seconds (the step number is kept).
     pub fn accumulate(&mut self, o: &StepMetrics) {
         self.owned_bodies += o.owned_bodies;
@@ -99,8 +108,9 @@ pub fn imbalance(values: impl Iterator<Item = f64> + Clone) -> f64 {
     }
 }
 
-/// One JSON line of a step's metrics on all ranks: per rank, summed, and
-/// the imbalances of owned triangles and busy seconds.
+/// One JSON line of an interval's metrics on all ranks (see
+/// [`StepMetrics::extend_interval`]): per rank, summed, and the imbalances
+/// of owned triangles and busy seconds.
 pub fn json_line(ranks: &[StepMetrics]) -> serde_json::Value {
     let mut per_rank = serde_json::Map::new();
     let mut sum = serde_json::Map::new();

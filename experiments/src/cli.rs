@@ -120,7 +120,7 @@ pub struct RunArgs {
     /// Under mpirun: write per-rank metrics as JSON lines to FILE.
     #[arg(long)]
     pub metrics: Option<PathBuf>,
-    /// Metrics every N steps (with --metrics).
+    /// A metrics line every N steps, summing their counts and seconds (with --metrics).
     #[arg(long, default_value_t = 1, value_parser = at_least_one_u64)]
     pub metrics_every: u64,
 }

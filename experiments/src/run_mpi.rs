@@ -1,0 +1,428 @@
+//! `mpirun -np P tridem run SCENE`: the DEM split across P ranks
+//! (`distributed`), with the output, checkpoints and summary of a one-node
+//! run, written by rank 0, and per-rank metrics.
+
+use crate::checkpoint_file;
+use crate::cli::RunArgs;
+use crate::error::{CliError, CliResult};
+use crate::output::Output;
+use dem::scene::Scene;
+use dem::simulation::Simulation;
+use distributed::metrics::{imbalance, json_line};
+use distributed::{DistributedSimulation, Exchange, Settings, StepMetrics};
+use indicatif::{ProgressBar, ProgressStyle};
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use partition::comm::all_gather_v;
+use signal_hook::consts::TERM_SIGNALS;
+use signal_hook::flag;
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Every rank's outcome agreed on (collective): `Ok` on every rank, or an
+/// error on every rank, reported once, by the lowest rank that failed.
+fn agree<T>(comm: &SimpleCommunicator, r: CliResult<T>) -> CliResult<T> {
+    let size = comm.size();
+    let mine = if r.is_err() { comm.rank() } else { size };
+    let mut first = size;
+    comm.all_reduce_into(&mine, &mut first, SystemOperation::min());
+    if first == size {
+        return r;
+    }
+    let mut code = match &r {
+        Err(e) => e.exit_code(),
+        Ok(_) => 0,
+    };
+    comm.process_at_rank(first).broadcast_into(&mut code);
+    Err(reported_by(comm, first, r.err(), code))
+}
+
+/// Has rank `by` print `e`, and every rank end silently with `code` only
+/// once it has: mpirun ends the other ranks as soon as one exits with an
+/// error, which must not cut the message short.
+fn reported_by(comm: &SimpleCommunicator, by: i32, e: Option<CliError>, code: u8) -> CliError {
+    if let Some(e) = e.filter(|_| comm.rank() == by) {
+        eprintln!("tridem: error: {e:#}");
+    }
+    comm.barrier();
+    CliError::reported_elsewhere(code)
+}
+
+/// The scene's `[parallel]` settings under the command line's.
+fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
+    let p = &scene.parallel;
+    let partitioner = match (args.partitioner, &p.partitioner) {
+        (Some(b), _) => b,
+        (None, Some(name)) => name.parse().map_err(CliError::input)?,
+        (None, None) => partition::Backend::ZoltanRcb,
+    };
+    let exchange = match (args.exchange, &p.exchange) {
+        (Some(x), _) => x,
+        (None, Some(name)) => name.parse().map_err(CliError::input)?,
+        (None, None) => Exchange::Nonblocking,
+    };
+    let every = args.repartition_every.or(p.repartition_every).unwrap_or(0);
+    Ok(Settings {
+        partitioner,
+        repartition_every: (every > 0).then_some(every),
+        exchange,
+        skin: scene.effects.contact_skin,
+    })
+}
+
+/// What rank 0 writes: output steps, checkpoints and metrics.
+struct Writer {
+    out: Option<Output>,
+    checkpoint: Option<std::path::PathBuf>,
+    metrics: Option<std::io::BufWriter<std::fs::File>>,
+}
+
+pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
+    let me = comm.rank();
+    let size = comm.size();
+    let scene = agree(
+        comm,
+        Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string())),
+    )?;
+    if me == 0 {
+        for w in &scene.warnings {
+            eprintln!("tridem: warning: {w}");
+        }
+    }
+    let settings = agree(comm, settings(args, &scene))?;
+    // Cores are shared by the ranks of a node: one thread each unless told.
+    let threads = args.threads.unwrap_or(1);
+    agree(
+        comm,
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .map_err(|e| CliError::runtime(e.to_string())),
+    )?;
+    let started = agree(comm, start(args, &scene))?;
+    let (sim, first) = started;
+    let last = (scene.end_time / scene.dt).round() as u64;
+    let steps = match args.steps {
+        Some(n) => n,
+        None if args.resume.is_none() || first < last => last.saturating_sub(first),
+        None => {
+            let e = CliError::input(format!(
+                "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
+                 nothing left to run (--steps N runs N more)",
+                scene.end_time
+            ));
+            return agree(comm, Err(e));
+        }
+    };
+    // Only rank 0 touches the disk; the others learn whether it could.
+    let writer = if me == 0 {
+        open_writer(args, &sim)
+    } else {
+        Ok(None)
+    };
+    let mut writer = agree(comm, writer)?;
+    if me == 0 {
+        eprintln!(
+            "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s, {steps} steps, \
+             {size} ranks x {threads} threads, {}, {} exchange, repartition {}",
+            args.scene.display(),
+            sim.world.dynamic_count(),
+            sim.world.particle_triangles(),
+            sim.world.bodies.len() - sim.world.dynamic_count(),
+            sim.effect_names().join(", "),
+            scene.dt,
+            settings.partitioner.name(),
+            settings.exchange.name(),
+            settings
+                .repartition_every
+                .map_or("at the start only".into(), |k| format!("every {k} steps")),
+        );
+    }
+    let n_particles = sim.world.dynamic_count();
+    let mut dist = agree(
+        comm,
+        DistributedSimulation::new(comm, &scene, sim, settings).map_err(CliError::runtime),
+    )?;
+    let bar = ProgressBar::new(steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed} eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    if args.quiet || me != 0 {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    // mpirun passes SIGTERM on to every rank; each stops after the step
+    // under way, and all agree on it within that step.
+    let stop = Arc::new(AtomicBool::new(false));
+    for &signal in TERM_SIGNALS {
+        flag::register_conditional_shutdown(signal, 1, Arc::clone(&stop))
+            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
+            .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
+    }
+    let mut totals = StepMetrics::default();
+    let mut interval = StepMetrics::default();
+    let start = Instant::now();
+    let mut stopped_at = None;
+    for s in 1..=steps {
+        let stopping = dist
+            .step(stop.load(Ordering::Relaxed))
+            .map_err(CliError::runtime);
+        let stopping = agree(comm, stopping)?;
+        totals.accumulate(dist.metrics());
+        interval.extend_interval(dist.metrics());
+        if s % args.metrics_every == 0 || s == steps {
+            write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut())?;
+        }
+        if dist.world.step % scene.output_every == 0 || stopping {
+            agree(comm, write_state(&scene, &dist, writer.as_mut(), true))?;
+        }
+        if s % 16 == 0 || s == steps {
+            bar.set_position(s);
+        }
+        if stopping {
+            stopped_at = Some(s);
+            break;
+        }
+    }
+    if let Some(s) = stopped_at {
+        bar.abandon();
+        let resume = match writer.as_ref().and_then(|w| w.checkpoint.as_ref()) {
+            Some(c) => format!("its state is in {}: go on with --resume", c.display()),
+            None => "no checkpoint without --output".into(),
+        };
+        let e = CliError::runtime(format!(
+            "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
+            dist.world.step, dist.world.time
+        ));
+        return Err(if me == 0 {
+            e
+        } else {
+            CliError::reported_elsewhere(1)
+        });
+    }
+    bar.finish_and_clear();
+    if steps > 0 && dist.world.step % scene.output_every != 0 {
+        agree(comm, write_state(&scene, &dist, writer.as_mut(), false))?;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    summary(comm, args, &dist, &totals, steps, secs, n_particles);
+    Ok(())
+}
+
+/// The simulation every rank starts from: new, or resumed from a checkpoint
+/// (read by every rank), and its first step.
+fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
+    match &args.resume {
+        None => Ok((Simulation::new(scene), 0)),
+        Some(file) => {
+            let c = checkpoint_file::read(file)?;
+            let sim = Simulation::resume(scene, &c).map_err(|e| {
+                CliError::input(format!(
+                    "{}: does not fit the scene {}: {e}",
+                    file.display(),
+                    args.scene.display()
+                ))
+            })?;
+            Ok((sim, c.step))
+        }
+    }
+}
+
+/// Rank 0's output, checkpoint and metrics files, the first output step written.
+fn open_writer(args: &RunArgs, sim: &Simulation) -> CliResult<Option<Writer>> {
+    if let Some(m) = args
+        .metrics
+        .as_ref()
+        .filter(|m| m.exists() && !args.overwrite)
+    {
+        return Err(CliError::input(format!(
+            "{}: exists; choose another metrics file or replace it with --overwrite",
+            m.display()
+        )));
+    }
+    let (out, write_first) = match &args.output {
+        Some(dir) if args.resume.is_some() && dir.join("run.h5").exists() => {
+            let (o, current) = Output::append(dir, sim)?;
+            (Some(o), !current)
+        }
+        Some(dir) if dir.join("run.h5").exists() && !args.overwrite => {
+            return Err(CliError::input(format!(
+                "{}: holds the output of an earlier run; go on with it with --resume {}, \
+                 write to another directory, or replace it with --overwrite",
+                dir.join("run.h5").display(),
+                dir.join("checkpoint.h5").display()
+            )))
+        }
+        Some(dir) => (Some(Output::create(dir, sim)?), true),
+        None => (None, false),
+    };
+    let mut out = out;
+    if let Some(o) = out.as_mut().filter(|_| write_first) {
+        o.write_step(sim)?;
+    }
+    let metrics = match &args.metrics {
+        Some(m) => Some(std::io::BufWriter::new(std::fs::File::create(m).map_err(
+            |e| CliError::runtime(format!("{}: cannot write: {e}", m.display())),
+        )?)),
+        None => None,
+    };
+    Ok(Some(Writer {
+        out,
+        checkpoint: args.output.as_ref().map(|d| d.join("checkpoint.h5")),
+        metrics,
+    }))
+}
+
+/// Gathers the state on rank 0 and writes a checkpoint (and, with `output`,
+/// an output step). Collective.
+fn write_state(
+    scene: &Scene,
+    dist: &DistributedSimulation,
+    writer: Option<&mut Writer>,
+    output: bool,
+) -> CliResult {
+    let gathered = dist.gather();
+    let (Some(g), Some(w)) = (gathered, writer) else {
+        return Ok(());
+    };
+    if let Some(o) = w.out.as_mut().filter(|_| output) {
+        let mut view = Simulation::resume(scene, &g.checkpoint)
+            .map_err(|e| CliError::runtime(format!("gathered state: {e}")))?;
+        view.show_contacts(g.contacts, g.contact_forces);
+        o.write_step(&view)?;
+    }
+    if let Some(c) = &w.checkpoint {
+        checkpoint_file::write(c, &g.checkpoint)?;
+    }
+    Ok(())
+}
+
+/// Gathers an interval's metrics on every rank; rank 0 writes a JSON line.
+fn write_metrics(
+    comm: &SimpleCommunicator,
+    interval: &StepMetrics,
+    writer: Option<&mut Writer>,
+) -> CliResult {
+    let Some(file) = writer.and_then(|w| w.metrics.as_mut()) else {
+        // Collective only when rank 0 writes: it tells the others by having a file.
+        let mut writes = 0u8;
+        comm.process_at_rank(0).broadcast_into(&mut writes);
+        if writes == 1 {
+            all_gather_v(comm, std::slice::from_ref(interval));
+        }
+        return Ok(());
+    };
+    let mut writes = 1u8;
+    comm.process_at_rank(0).broadcast_into(&mut writes);
+    let ranks = all_gather_v(comm, std::slice::from_ref(interval));
+    writeln!(file, "{}", json_line(&ranks))
+        .and_then(|_| file.flush())
+        .map_err(|e| CliError::runtime(format!("metrics: {e}")))
+}
+
+/// Rank 0 prints the run's summary: time per step and, per metric, its
+/// minimum, mean and maximum over the ranks.
+fn summary(
+    comm: &SimpleCommunicator,
+    args: &RunArgs,
+    dist: &DistributedSimulation,
+    totals: &StepMetrics,
+    steps: u64,
+    secs: f64,
+    particles: usize,
+) {
+    let ranks = all_gather_v(comm, std::slice::from_ref(totals));
+    let contacts = ranks.iter().map(|m| m.contacts).sum::<u64>();
+    let mut stats = [0u64; 2];
+    let mine = [
+        dist.totals.detection.deep_contacts,
+        dist.totals.detection.triangle_pairs,
+    ];
+    comm.all_reduce_into(&mine[..], &mut stats[..], SystemOperation::sum());
+    if comm.rank() != 0 {
+        return;
+    }
+    let per_step = |v: f64| v / steps.max(1) as f64;
+    let mut table = serde_json::Map::new();
+    for (name, _) in StepMetrics::default().fields() {
+        if name == "step" {
+            continue;
+        }
+        let column: Vec<f64> = ranks
+            .iter()
+            .map(|m| per_step(m.fields().iter().find(|f| f.0 == name).map_or(0.0, |f| f.1)))
+            .collect();
+        let min = column.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = column.iter().copied().fold(0.0, f64::max);
+        let mean = column.iter().sum::<f64>() / column.len() as f64;
+        table.insert(
+            name.into(),
+            serde_json::json!({"min": min, "mean": mean, "max": max}),
+        );
+    }
+    let summary = serde_json::json!({
+        "scene": args.scene.display().to_string(),
+        "ranks": ranks.len(),
+        "threads": rayon::current_num_threads(),
+        "steps": steps,
+        "last_step": dist.world.step,
+        "particles": particles,
+        "seconds": secs,
+        "seconds_per_step": secs / steps.max(1) as f64,
+        "seconds_per_particle_step": secs / (steps.max(1) as f64 * particles as f64),
+        "contacts": contacts,
+        "deep_contacts": stats[0],
+        "triangle_pairs_checked": stats[1],
+        "triangle_imbalance": imbalance(ranks.iter().map(|m| m.owned_triangles as f64)),
+        "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
+        "per_step_over_ranks": table,
+    });
+    if args.json {
+        println!("{summary}");
+        return;
+    }
+    println!(
+        "steps                  {steps} in {secs:.2} s ({:.0} steps/s) on {} ranks",
+        steps as f64 / secs,
+        ranks.len()
+    );
+    println!(
+        "cost per particle-step {:.3e} s",
+        summary["seconds_per_particle_step"].as_f64().unwrap_or(0.0)
+    );
+    println!("contacts (sum)         {contacts}");
+    println!("deep contacts          {}", stats[0]);
+    println!(
+        "imbalance              triangles {:.3}, busy time {:.3} (max/mean)",
+        summary["triangle_imbalance"].as_f64().unwrap_or(1.0),
+        summary["busy_imbalance"].as_f64().unwrap_or(1.0)
+    );
+    println!(
+        "per step, over ranks   {:>12} {:>12} {:>12}",
+        "min", "mean", "max"
+    );
+    for (name, v) in &table {
+        let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
+        println!(
+            "  {name:<20} {:>12.4e} {:>12.4e} {:>12.4e}",
+            f("min"),
+            f("mean"),
+            f("max")
+        );
+    }
+    if let Some(dir) = &args.output {
+        println!(
+            "output                 {}/run.h5 (open {}/run.xmf in ParaView)",
+            dir.display(),
+            dir.display()
+        );
+        println!(
+            "checkpoint             {}/checkpoint.h5 (step {}; go on with --resume)",
+            dir.display(),
+            dist.world.step
+        );
+    }
+}

@@ -1,0 +1,409 @@
+//! `mpirun -np P tridem run`: the DEM split across ranks gives what one
+//! process gives, to the bit, on any rank count, with any partitioner and
+//! any repartitioning; resumes on another rank count; survives empty ranks,
+//! bad input and signals with one clear message.
+use mpi_harness::{launcher, open_mpi_local_args, open_mpi_local_env};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct Ran {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn tridem() -> &'static str {
+    env!("CARGO_BIN_EXE_tridem")
+}
+
+fn scene(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../scenes")
+        .join(name)
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tridem-mpi-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `tridem ARGS` on `ranks` ranks (1: without mpirun), within a time limit.
+fn run(ranks: usize, args: &[&str]) -> Ran {
+    let mut cmd = if ranks == 1 {
+        Command::new(tridem())
+    } else {
+        let mut c = Command::new(launcher());
+        c.args(open_mpi_local_args())
+            .args(["-np", &ranks.to_string(), tridem()]);
+        c
+    };
+    cmd.args(args).envs(open_mpi_local_env());
+    let out = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    finish(out, Duration::from_secs(600))
+}
+
+fn finish(mut child: std::process::Child, limit: Duration) -> Ran {
+    let start = Instant::now();
+    loop {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        if start.elapsed() > limit {
+            child.kill().unwrap();
+            panic!("no end within {limit:?}: a hang");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = child.wait_with_output().unwrap();
+    Ran {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+    }
+}
+
+fn bytes(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Runs `scene_file` for `steps` on one process and on each of `splits`
+/// (ranks, extra options), each writing output and a checkpoint; every
+/// split's run.h5 and checkpoint.h5 must be byte for byte the one-process ones.
+fn same_as_one_process(
+    name: &str,
+    scene_file: &Path,
+    steps: &str,
+    least_contacts: u64,
+    splits: &[(usize, Vec<&str>)],
+) {
+    let dir = temp(name);
+    let one = dir.join("one");
+    let base = [
+        "run",
+        scene_file.to_str().unwrap(),
+        "--steps",
+        steps,
+        "--quiet",
+    ];
+    let r = run(
+        1,
+        &[&base[..], &["--output", one.to_str().unwrap()]].concat(),
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let contacts = r
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("contacts (sum)"))
+        .and_then(|l| l.split_whitespace().last())
+        .and_then(|n| n.parse::<u64>().ok())
+        .unwrap();
+    assert!(
+        contacts >= least_contacts,
+        "{name}: {contacts} contacts, too few to test"
+    );
+    for (k, (ranks, opts)) in splits.iter().enumerate() {
+        let out = dir.join(format!("split{k}"));
+        let args = [&base[..], &["--output", out.to_str().unwrap()], &opts[..]].concat();
+        let r = run(*ranks, &args);
+        let ctx = format!("{name}: {ranks} ranks {opts:?}");
+        assert_eq!(r.code, 0, "{ctx}: {}", r.stderr);
+        assert!(
+            r.stdout
+                .contains(&format!("contacts (sum)         {contacts}")),
+            "{ctx}: contacts differ\n{}",
+            r.stdout
+        );
+        for file in ["checkpoint.h5", "run.h5", "run.xmf"] {
+            assert!(
+                bytes(&one.join(file)) == bytes(&out.join(file)),
+                "{ctx}: {file} differs from one process's"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_hopper_on_any_split_is_one_process_to_the_bit() {
+    // Each partitioner with each repartitioning (never, every step, every
+    // 10), on 2, 3 and 4 ranks in turn; the hybrid kernel recomputing
+    // only the uncertified pairs, as the scene says.
+    let mut splits = Vec::new();
+    let partitioners = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+    for (i, p) in partitioners.into_iter().enumerate() {
+        for (j, every) in ["0", "1", "10"].into_iter().enumerate() {
+            let ranks = 2 + (i + j) % 3;
+            splits.push((
+                ranks,
+                vec!["--partitioner", p, "--repartition-every", every],
+            ));
+        }
+    }
+    splits.push((2, vec!["--exchange", "blocking"]));
+    same_as_one_process("hopper", &scene("hopper.toml"), "3000", 1000, &splits);
+}
+
+#[test]
+fn the_brute_force_kernel_splits_to_the_bit_too() {
+    let dir = temp("brute-scene");
+    let text = std::fs::read_to_string(scene("hopper.toml")).unwrap();
+    let head = &text[..text.find("[kernel]").unwrap()];
+    let file = dir.join("hopper-brute.toml");
+    std::fs::write(&file, format!("{head}[kernel]\nmethod = \"brute\"\n")).unwrap();
+    let splits = [
+        (2, vec!["--repartition-every", "10"]),
+        (3, vec!["--partitioner", "rcb"]),
+    ];
+    same_as_one_process("brute", &file, "3000", 1000, &splits);
+}
+
+#[test]
+fn a_thousand_particles_split_to_the_bit() {
+    let splits = [
+        (
+            2,
+            vec!["--partitioner", "zoltan-rcb", "--repartition-every", "10"],
+        ),
+        (
+            3,
+            vec!["--partitioner", "metis", "--repartition-every", "1"],
+        ),
+        (4, vec!["--partitioner", "zoltan-hsfc"]),
+        (4, vec!["--partitioner", "rcb", "--repartition-every", "10"]),
+    ];
+    same_as_one_process("silo-1000", &scene("silo-1000.toml"), "500", 1000, &splits);
+}
+
+#[test]
+fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
+    let splits = [
+        (4, vec!["--repartition-every", "5"]),
+        (3, vec!["--partitioner", "metis"]),
+    ];
+    same_as_one_process("two", &scene("two-particles.toml"), "2500", 20, &splits);
+}
+
+/// Positions, velocities and energies of every output step, as bits.
+fn output_steps(run_h5: &Path) -> Vec<Vec<u64>> {
+    let f = hdf5::File::open(run_h5).unwrap();
+    let steps = f.group("steps").unwrap();
+    (0..steps.member_names().unwrap().len())
+        .map(|k| {
+            let g = steps.group(&k.to_string()).unwrap();
+            let mut bits = Vec::new();
+            for d in ["positions", "velocities", "angular_momenta", "orientations"] {
+                let a: ndarray::Array2<f64> = g.dataset(d).unwrap().read_2d().unwrap();
+                bits.extend(a.iter().map(|x| x.to_bits()));
+            }
+            let e = g.group("energy").unwrap();
+            let mut names = e.attr_names().unwrap();
+            names.sort();
+            for n in names {
+                let v: f64 = e.attr(&n).unwrap().read_scalar().unwrap();
+                bits.push(v.to_bits());
+            }
+            bits
+        })
+        .collect()
+}
+
+#[test]
+fn a_run_resumed_on_other_rank_counts_goes_on_to_the_bit() {
+    let dir = temp("resume");
+    let hopper = scene("hopper.toml");
+    let hopper = hopper.to_str().unwrap();
+    let (one, split) = (dir.join("one"), dir.join("split"));
+    let r = run(
+        1,
+        &[
+            "run",
+            hopper,
+            "--steps",
+            "3500",
+            "--quiet",
+            "--output",
+            one.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let out = split.to_str().unwrap();
+    let checkpoint = split.join("checkpoint.h5");
+    let c = checkpoint.to_str().unwrap();
+    // 1 rank, then 3, then 2: the checkpoints are plain data, not a rank's.
+    for (ranks, resume) in [(1, false), (3, true), (2, true)] {
+        let mut args = vec!["run", hopper, "--steps", "1000", "--quiet", "--output", out];
+        if resume {
+            args.extend(["--resume", c]);
+        }
+        let steps = if ranks == 2 { "1500" } else { "1000" };
+        args[3] = steps;
+        let r = run(ranks, &args);
+        assert_eq!(r.code, 0, "{ranks} ranks: {}", r.stderr);
+    }
+    assert!(
+        bytes(&one.join("checkpoint.h5")) == bytes(&checkpoint),
+        "the checkpoint after 3,500 steps differs"
+    );
+    assert_eq!(
+        output_steps(&one.join("run.h5")),
+        output_steps(&split.join("run.h5")),
+        "the output steps differ"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn metrics_count_every_rank_and_every_body_once() {
+    let dir = temp("metrics");
+    let file = dir.join("m.jsonl");
+    let r = run(
+        3,
+        &[
+            "run",
+            scene("silo-1000.toml").to_str().unwrap(),
+            "--steps",
+            "200",
+            "--quiet",
+            "--repartition-every",
+            "50",
+            "--metrics",
+            file.to_str().unwrap(),
+            "--metrics-every",
+            "10",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&file)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 20);
+    let mut migrated = 0.0;
+    for l in &lines {
+        assert_eq!(l["ranks"], 3);
+        assert_eq!(l["sum"]["owned_bodies"], 1000.0, "{l}");
+        assert_eq!(l["sum"]["owned_triangles"], 20000.0, "{l}");
+        assert_eq!(l["per_rank"]["owned_bodies"].as_array().unwrap().len(), 3);
+        // What is sent is received.
+        assert_eq!(l["sum"]["ghosts_sent"], l["sum"]["ghosts_received"], "{l}");
+        assert!(l["triangle_imbalance"].as_f64().unwrap() >= 1.0);
+        migrated += l["sum"]["migrated_bodies"].as_f64().unwrap();
+    }
+    // The first step places the bodies dealt out in turn.
+    assert!(migrated > 0.0);
+    assert!(r.stdout.contains("wait_seconds"), "{}", r.stdout);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_bad_scene_ends_every_rank_with_one_message() {
+    let dir = temp("bad");
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        "[simulation]\ndt = 1e-5\nend_time = 1.0\n[effects]\nbogus = {}\n",
+    )
+    .unwrap();
+    let r = run(3, &["run", bad.to_str().unwrap(), "--quiet"]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert_eq!(
+        r.stderr.matches("tridem: error:").count(),
+        1,
+        "{}",
+        r.stderr
+    );
+    assert!(r.stderr.contains("bad.toml:5"), "{}", r.stderr);
+    assert!(!r.stderr.contains("MPI_ABORT"), "{}", r.stderr);
+    // A resume from a file that is not a checkpoint: refused, nothing written.
+    let out = dir.join("out");
+    let r = run(
+        2,
+        &[
+            "run",
+            scene("hopper.toml").to_str().unwrap(),
+            "--resume",
+            bad.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    assert_eq!(
+        r.stderr.matches("tridem: error:").count(),
+        1,
+        "{}",
+        r.stderr
+    );
+    assert!(!out.exists(), "a refused run created {}", out.display());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn sigterm_checkpoints_and_ends_every_rank() {
+    let dir = temp("term");
+    let out = dir.join("out");
+    let silo = scene("silo-1000.toml");
+    let mut cmd = Command::new(launcher());
+    cmd.args(open_mpi_local_args())
+        .args([
+            "-np",
+            "2",
+            tridem(),
+            "run",
+            silo.to_str().unwrap(),
+            "--quiet",
+        ])
+        .args(["--output", out.to_str().unwrap()])
+        .envs(open_mpi_local_env())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let child = cmd.spawn().unwrap();
+    // Once the first output step is written, the run is under way.
+    let start = Instant::now();
+    while !out.join("run.xmf").exists() && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    // As a batch system's time limit does: every rank gets the signal
+    // (mpirun itself, signalled, would end the ranks at once).
+    let pattern = format!("^{} run .*{}", tridem(), out.display());
+    assert!(Command::new("pkill")
+        .args(["-TERM", "-f", &pattern])
+        .status()
+        .unwrap()
+        .success());
+    let r = finish(child, Duration::from_secs(120));
+    assert_ne!(r.code, 0);
+    assert!(r.stderr.contains("stopped by a signal"), "{}", r.stderr);
+    assert_eq!(
+        r.stderr.matches("tridem: error:").count(),
+        1,
+        "{}",
+        r.stderr
+    );
+    // Its checkpoint goes on, on one process, to the same bits as a run
+    // that was never stopped.
+    let c = out.join("checkpoint.h5");
+    let r = run(
+        1,
+        &[
+            "run",
+            silo.to_str().unwrap(),
+            "--resume",
+            c.to_str().unwrap(),
+            "--steps",
+            "10",
+            "--quiet",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let _ = std::fs::remove_dir_all(&dir);
+}
