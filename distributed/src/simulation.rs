@@ -112,6 +112,9 @@ pub struct DistributedSimulation<'c> {
     /// Counters summed over this rank's steps (contacts: those it books).
     pub totals: StepStats,
     found: Vec<TriangleContact>,
+    /// This rank's triangles, kept between steps for their storage.
+    set: TriangleSet,
+    owned_triangles: Vec<(TriangleKey, Triangle)>,
 }
 
 fn fail<T>(why: impl Into<String>) -> Result<T, String> {
@@ -191,6 +194,8 @@ impl<'c> DistributedSimulation<'c> {
             metrics: StepMetrics::default(),
             totals: StepStats::default(),
             found: Vec::new(),
+            set: TriangleSet::default(),
+            owned_triangles: Vec::new(),
             world,
         };
         s.repartition()?;
@@ -481,11 +486,17 @@ impl<'c> DistributedSimulation<'c> {
     /// the detection between owned and ghost bodies. Returns the wait.
     fn find_contacts(&mut self) -> f64 {
         let start = Instant::now();
-        let mut owned = self.obstacles.clone();
+        // In key order when the obstacles are numbered last (scenes number
+        // them so); `set_owned` sorts otherwise.
+        let mut owned = std::mem::take(&mut self.owned_triangles);
+        owned.clear();
         for &i in &self.owned {
             body_triangles(&self.world, i, &mut owned);
         }
-        let mut set = TriangleSet::with_owned(owned, &self.halos);
+        owned.extend_from_slice(&self.obstacles);
+        let mut set = std::mem::take(&mut self.set);
+        set.set_owned(&mut owned, &self.halos);
+        self.owned_triangles = owned;
         self.found.clear();
         let (world, halos, kernel) = (&self.world, &self.halos, &self.kernel);
         let (detector, found) = (&mut self.detector, &mut self.found);
@@ -533,6 +544,7 @@ impl<'c> DistributedSimulation<'c> {
             Phase::Across,
             &mut self.found,
         );
+        self.set = set;
         self.metrics.local_ghost_seconds += start_ghosts.elapsed().as_secs_f64();
         let start_build = Instant::now();
         let is_owned = &self.is_owned;

@@ -83,6 +83,15 @@ struct Writer {
 pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let me = comm.rank();
     let size = comm.size();
+    // A batch system's time limit signals every rank; each stops after the
+    // step under way, and all agree on it within that step. Handled from
+    // the start, so that no signal finds a rank without its handler.
+    let stop = Arc::new(AtomicBool::new(false));
+    for &signal in TERM_SIGNALS {
+        flag::register_conditional_shutdown(signal, 1, Arc::clone(&stop))
+            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
+            .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
+    }
     let scene = agree(
         comm,
         Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string())),
@@ -153,14 +162,6 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     );
     if args.quiet || me != 0 {
         bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    // mpirun passes SIGTERM on to every rank; each stops after the step
-    // under way, and all agree on it within that step.
-    let stop = Arc::new(AtomicBool::new(false));
-    for &signal in TERM_SIGNALS {
-        flag::register_conditional_shutdown(signal, 1, Arc::clone(&stop))
-            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
-            .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
     }
     let mut totals = StepMetrics::default();
     let mut interval = StepMetrics::default();

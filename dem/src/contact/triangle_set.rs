@@ -509,29 +509,18 @@ impl TriangleSet {
 
     /// A set of explicitly given owned triangles (one rank's share), without
     /// ghosts. `halos` is indexed by body.
-    pub fn with_owned(owned: Vec<(TriangleKey, Triangle)>, halos: &[f64]) -> TriangleSet {
+    pub fn with_owned(mut owned: Vec<(TriangleKey, Triangle)>, halos: &[f64]) -> TriangleSet {
         let mut set = TriangleSet::default();
-        set.replace(owned, Vec::new(), halos);
+        set.set_owned(&mut owned, halos);
         set
     }
 
-    /// Replaces the ghosts (what arrived from other ranks), keeping the owned part.
-    pub fn set_ghosts(&mut self, ghosts: Vec<(TriangleKey, Triangle)>, halos: &[f64]) {
-        let owned = (0..self.owned)
-            .map(|i| (self.keys[i], self.triangle(i).vertices))
-            .collect();
-        self.replace(owned, ghosts, halos);
-    }
-
-    fn replace(
-        &mut self,
-        mut owned: Vec<(TriangleKey, Triangle)>,
-        mut ghosts: Vec<(TriangleKey, Triangle)>,
-        halos: &[f64],
-    ) {
-        owned.sort_by_key(|e| e.0);
-        ghosts.sort_by_key(|e| e.0);
-        self.owned = owned.len();
+    /// Replaces every triangle by `owned` (sorted here by key), without
+    /// ghosts; the set's storage is kept for the next call.
+    pub fn set_owned(&mut self, owned: &mut [(TriangleKey, Triangle)], halos: &[f64]) {
+        if !owned.is_sorted_by_key(|e| e.0) {
+            owned.sort_by_key(|e| e.0);
+        }
         self.poses.clear();
         self.fresh = Freshness::default();
         self.filled_boxes.clear();
@@ -539,53 +528,86 @@ impl TriangleSet {
         self.moving.clear();
         self.keys.clear();
         self.triangles.clear();
-        for (k, t) in owned.iter().chain(&ghosts) {
+        self.groups.clear();
+        self.owned = 0;
+        self.push_part(owned, halos);
+        self.owned = owned.len();
+        let n = self.owned;
+        let runs = self.runs(0..n);
+        self.groups
+            .extend(runs.into_iter().map(|(body, r, bbox)| BodyGroup {
+                body,
+                owned: r,
+                ghost: n..n,
+                owned_box: bbox,
+                ghost_box: Bounds::EMPTY,
+            }));
+    }
+
+    /// Replaces the ghosts (what arrived from other ranks), keeping the owned part.
+    pub fn set_ghosts(&mut self, mut ghosts: Vec<(TriangleKey, Triangle)>, halos: &[f64]) {
+        if !ghosts.is_sorted_by_key(|e| e.0) {
+            ghosts.sort_by_key(|e| e.0);
+        }
+        self.keys.truncate(self.owned);
+        self.triangles.truncate(self.owned);
+        self.push_part(&ghosts, halos);
+        let n = self.keys.len();
+        let owned: Vec<BodyGroup> = self
+            .groups
+            .drain(..)
+            .filter(|g| !g.owned.is_empty())
+            .collect();
+        let mut own = owned.into_iter().peekable();
+        let mut gho = self.runs(self.owned..n).into_iter().peekable();
+        let empty_owned = self.owned..self.owned;
+        // Groups: merge the bodies of the two sorted parts.
+        loop {
+            let body = match (own.peek(), gho.peek()) {
+                (None, None) => break,
+                (Some(o), None) => o.body,
+                (None, Some(g)) => g.0,
+                (Some(o), Some(g)) => o.body.min(g.0),
+            };
+            let mut group = own.next_if(|o| o.body == body).unwrap_or(BodyGroup {
+                body,
+                owned: empty_owned.clone(),
+                ghost: n..n,
+                owned_box: Bounds::EMPTY,
+                ghost_box: Bounds::EMPTY,
+            });
+            (group.ghost, group.ghost_box) = match gho.next_if(|g| g.0 == body) {
+                Some((_, r, bbox)) => (r, bbox),
+                None => (n..n, Bounds::EMPTY),
+            };
+            self.groups.push(group);
+        }
+    }
+
+    /// Appends triangles with their halos' boxes.
+    fn push_part(&mut self, part: &[(TriangleKey, Triangle)], halos: &[f64]) {
+        for (k, t) in part {
             self.keys.push(*k);
             self.triangles
                 .push(Slot::new(SetTriangle::new(*t, halos[k.body as usize])));
         }
-        // Groups: merge the bodies of the two sorted parts.
-        self.groups.clear();
-        let runs = |range: Range<usize>, keys: &[TriangleKey]| {
-            let mut runs: Vec<(u32, Range<usize>)> = Vec::new();
-            for i in range {
-                match runs.last_mut() {
-                    Some((b, r)) if *b == keys[i].body => r.end = i + 1,
-                    _ => runs.push((keys[i].body, i..i + 1)),
+    }
+
+    /// The runs of one body's triangles in `range` (sorted by key), with
+    /// the union of their boxes.
+    fn runs(&self, range: Range<usize>) -> Vec<(u32, Range<usize>, Bounds)> {
+        let mut runs: Vec<(u32, Range<usize>, Bounds)> = Vec::new();
+        for i in range {
+            let b = self.triangle(i).bounds;
+            match runs.last_mut() {
+                Some((body, r, bbox)) if *body == self.keys[i].body => {
+                    r.end = i + 1;
+                    *bbox = bbox.union(&b);
                 }
+                _ => runs.push((self.keys[i].body, i..i + 1, b)),
             }
-            runs
-        };
-        let n = self.keys.len();
-        let mut own = runs(0..self.owned, &self.keys).into_iter().peekable();
-        let mut gho = runs(self.owned..n, &self.keys).into_iter().peekable();
-        let empty_owned = self.owned..self.owned;
-        let empty_ghost = n..n;
-        loop {
-            let body = match (own.peek(), gho.peek()) {
-                (None, None) => break,
-                (Some(o), None) => o.0,
-                (None, Some(g)) => g.0,
-                (Some(o), Some(g)) => o.0.min(g.0),
-            };
-            let o = own
-                .next_if(|r| r.0 == body)
-                .map_or(empty_owned.clone(), |r| r.1);
-            let g = gho
-                .next_if(|r| r.0 == body)
-                .map_or(empty_ghost.clone(), |r| r.1);
-            let union = |r: &Range<usize>| {
-                r.clone()
-                    .fold(Bounds::EMPTY, |b, i| b.union(&self.triangle(i).bounds))
-            };
-            self.groups.push(BodyGroup {
-                body,
-                owned_box: union(&o),
-                ghost_box: union(&g),
-                owned: o,
-                ghost: g,
-            });
         }
+        runs
     }
 
     /// Indices of the owned triangles.
