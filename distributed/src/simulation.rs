@@ -207,6 +207,17 @@ impl<'c> DistributedSimulation<'c> {
         &self.owned
     }
 
+    /// The contacts of the last evaluation that this rank books (each
+    /// contact of the run is booked on one rank).
+    pub fn booked_contacts(&self) -> impl Iterator<Item = &Contact> {
+        let ctx = &self.ctx;
+        ctx.contacts
+            .iter()
+            .enumerate()
+            .filter(|&(k, _)| ctx.books_contact(k))
+            .map(|(_, c)| c)
+    }
+
     /// What this rank measured in the last step.
     pub fn metrics(&self) -> &StepMetrics {
         &self.metrics
