@@ -2,7 +2,7 @@
 //!
 //! On several threads a body's state was often last written by the other
 //! core, and a load of it waits for the line to come over; asked for early
-//! enough, it is there when needed (docs/dem.md, session 19).
+//! enough, it is there when needed (docs/dem.md).
 
 /// Starts loading the cache line that holds `value` (a no-op off x86-64).
 /// Only a hint: nothing is read, so it can be neither wrong nor unsafe.

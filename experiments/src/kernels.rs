@@ -57,7 +57,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     };
     // Every row is one closure over shared output buffers; the closures run in
     // alternating rounds (one repetition of each per round) and each row is the
-    // median of its rounds. Run one after the other, this VM's speed swings of
+    // median of its rounds. Run one after the other, a shared machine's speed swings of
     // +-30% between minutes land on whole rows and distort the ratios between
     // them; alternated, every row sees the same swings.
     let single = pool_of(1)?;
@@ -358,7 +358,7 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     }
     // Accuracy first, one run per setting (it also warms up); then the times,
     // in rounds that run every setting once, each setting's time the median
-    // over rounds: measured one setting after the other, this VM's swings of
+    // over rounds: measured one setting after the other, a shared machine's swings of
     // +-30% between minutes gave one setting 73-110 ns/pair within a sweep.
     let rounds = args.repeat.max(1);
     let bar = ProgressBar::new((settings.len() * (1 + rounds)) as u64).with_style(

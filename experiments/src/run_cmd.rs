@@ -109,7 +109,7 @@ pub fn run(args: &RunArgs) -> CliResult {
     // The whole loop runs on a worker of the pool, so that parallel sections
     // start from inside it, and the other workers poll instead of sleeping
     // between sections (see dem::busy_workers; measured on the hopper: waking
-    // threads took 25-40% of a run on this VM).
+    // threads took 25-40% of a run on a 2-core machine).
     let looped: CliResult<Option<u64>> = dem::busy_workers::with_busy_workers(|| {
         for s in 1..=steps {
             sim.step();

@@ -286,7 +286,7 @@ pub fn run(args: &ScalingArgs) -> CliResult {
 /// into buffers of its own. Small, so that it stays in each core's cache at
 /// any thread count; read-only and not shared out, so nothing but the cores
 /// themselves limits it. (A set shared out between the threads measured
-/// superlinear speed-ups on this VM, 2.07-2.15x with 50,000 to 1,000,000
+/// superlinear speed-ups on a 2-core machine, 2.07-2.15x with 50,000 to 1,000,000
 /// pairs; the likely cause, half a set fitting one core's caches better
 /// than the whole, was not confirmed: the guest has no cache counters.)
 struct Reference {

@@ -246,7 +246,7 @@ impl Detector {
         // Each thread fills and reads the moving bodies' triangles in a set of
         // its own: in one shared set, the triangles one core filled were
         // read by the other, and moving them between the cores cost more
-        // than filling a body twice (docs/dem.md, sessions 15 and 16).
+        // than filling a body twice (docs/dem.md, "Threads").
         let copies = self.replica_budget.unwrap_or(REPLICA_BUDGET) / sets[0].bytes().max(1);
         let n_sets = rayon::current_num_threads().clamp(1, 1 + copies);
         sets.truncate(n_sets);

@@ -282,7 +282,7 @@ impl TriangleSet {
     ///
     /// Why: on several threads the pose was last written by whichever core
     /// integrated the body, and waiting for its cache line took a quarter of
-    /// the fills' time at two threads (hopper, Zen 5 VM, docs/dem.md).
+    /// the fills' time at two threads (hopper, docs/dem.md).
     #[inline]
     pub(crate) fn prefetch_pose(&self, g: usize, world: &World) {
         let (Some(state), Some(group)) = (self.fresh.0.get(g), self.groups.get(g)) else {

@@ -335,7 +335,7 @@ fn penalty_share<const N: usize, P: PairSource + ?Sized>(
 /// and answers are still in cache: gathering a whole share first and
 /// recomputing at the end read every failed pair back from memory (with
 /// 200,000 random pairs, each of the 6% failed pairs then cost two to three
-/// times a brute-force pair; see docs/distance.md, session 11).
+/// times a brute-force pair; see docs/distance.md).
 struct FailedPairs {
     isa: Isa,
     /// Indices into the pairs of the waiting pairs, and copies of them.

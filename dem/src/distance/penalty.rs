@@ -259,7 +259,7 @@ pub(crate) fn penalty_batch_on<const N: usize, P: PairSource + ?Sized>(
 ) {
     // Two or four lanes fill at most a 256-bit register, and the AVX-512
     // build of the kernel for them came out slower than the AVX2 one (batch
-    // 4: 121 against 66 ns/pair on the Zen 4 VM, 90 against 54 on Zen 5;
+    // 4: 121 against 66 ns/pair on one AVX-512 machine, 90 against 54 on another;
     // docs/distance.md); AVX-512 CPUs have AVX2 and FMA too. Answers are the
     // same on every instruction set.
     let isa = match (isa, N) {
