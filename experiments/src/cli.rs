@@ -33,6 +33,62 @@ pub enum Command {
     Scaling(ScalingArgs),
     /// Plot the JSON lines of `tridem partition --json` runs (time and ghosts per partitioner).
     PartitionPlot(PartitionPlotArgs),
+    /// A study on real distributed runs (started under mpirun): repartition
+    /// frequency, partitioners, or the ghost exchange; metrics, a summary CSV and figures.
+    Study(StudyArgs),
+}
+
+/// The studies of `tridem study`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StudyName {
+    /// Repartitioning every K steps: time by section, imbalance, a fitted cost model.
+    RepartitionFrequency,
+    /// Zoltan RCB, RIB, HSFC, METIS and the native RCB on the same run.
+    Partitioners,
+    /// Blocking against non-blocking ghost exchange, over rank counts.
+    Exchange,
+}
+
+impl StudyName {
+    pub fn name(self) -> &'static str {
+        match self {
+            StudyName::RepartitionFrequency => "repartition-frequency",
+            StudyName::Partitioners => "partitioners",
+            StudyName::Exchange => "exchange",
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct StudyArgs {
+    pub name: StudyName,
+    /// The scene every run steps.
+    #[arg(long, default_value = "scenes/silo-1000.toml")]
+    pub scene: PathBuf,
+    /// Ranks (the exchange study runs each count; the others the first).
+    #[arg(long, value_delimiter = ',', default_value = "2")]
+    pub ranks: Vec<usize>,
+    /// Threads per rank.
+    #[arg(long, default_value_t = 1, value_parser = at_least_one)]
+    pub threads: usize,
+    /// Steps per run.
+    #[arg(long, default_value_t = 1000)]
+    pub steps: u64,
+    /// The repartitioning intervals K of repartition-frequency (0: never).
+    #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0")]
+    pub every: Vec<u64>,
+    /// Repartition every K steps in the other studies.
+    #[arg(long, default_value_t = 20)]
+    pub repartition_every: u64,
+    /// A metrics line every N steps.
+    #[arg(long, default_value_t = 10, value_parser = at_least_one_u64)]
+    pub metrics_every: u64,
+    /// Where the runs' metrics, summary.csv and the figures go (default: out/study-NAME).
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    /// Replace an earlier study in the output directory.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 #[derive(Args, Debug)]
@@ -105,11 +161,11 @@ pub struct RunArgs {
     pub quiet: bool,
     /// Under mpirun: how particles are assigned to ranks (zoltan-rcb,
     /// zoltan-rib, zoltan-hsfc, metis, rcb; default: the scene's
-    /// [parallel] partitioner, else zoltan-rcb).
+    /// `[parallel]` partitioner, else zoltan-rcb).
     #[arg(long)]
     pub partitioner: Option<partition::Backend>,
     /// Under mpirun: repartition every K steps (0: only at the start;
-    /// default: the scene's [parallel] repartition_every, else 0).
+    /// default: the scene's `[parallel]` repartition_every, else 0).
     #[arg(long)]
     pub repartition_every: Option<u64>,
     /// Under mpirun: ghost exchange overlapping the detection among owned

@@ -15,6 +15,7 @@ mod run_mpi;
 mod scaling_cmd;
 mod sections;
 mod stats;
+mod study_cmd;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -29,6 +30,7 @@ fn main() -> ExitCode {
         cli::Command::Run(args) => run_cmd::run(&args),
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
+        cli::Command::Study(args) => study_cmd::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

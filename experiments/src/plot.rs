@@ -205,3 +205,71 @@ pub fn partition_summary(
     root.present()?;
     Ok(())
 }
+
+/// One line of a [`lines`] plot.
+pub struct Series {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Lines with markers, one per series, on linear axes (x log-scaled when
+/// `log_x`), with a legend; an empty plot says so rather than failing.
+pub fn lines(
+    path: &Path,
+    caption: &str,
+    (xdesc, ydesc): (&str, &str),
+    series: &[Series],
+    log_x: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let all = series.iter().flat_map(|s| s.points.iter());
+    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for &(x, y) in all {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y1 = y1.max(y);
+    }
+    if !x0.is_finite() {
+        (x0, x1, y1) = (1.0, 2.0, 1.0);
+    }
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    let y1 = if y1 > 0.0 { y1 * 1.1 } else { 1.0 };
+    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut builder = ChartBuilder::on(&root);
+    builder
+        .caption(caption, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(70);
+    let colour = |k: usize| Palette99::pick(k).to_rgba();
+    macro_rules! draw {
+        ($chart:expr) => {{
+            let mut chart = $chart;
+            chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw()?;
+            for (k, s) in series.iter().enumerate() {
+                let c = colour(k);
+                chart
+                    .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))?
+                    .label(s.name.clone())
+                    .legend(move |(x, y)| {
+                        PathElement::new([(x, y), (x + 18, y)], c.stroke_width(2))
+                    });
+                chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+        }};
+    }
+    if log_x {
+        draw!(builder.build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?);
+    } else {
+        draw!(builder.build_cartesian_2d(x0..x1, 0.0..y1)?);
+    }
+    root.present()?;
+    Ok(())
+}

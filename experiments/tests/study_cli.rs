@@ -1,0 +1,133 @@
+//! `tridem study NAME` at a tiny size: every run's metrics as JSON lines,
+//! the summary CSV with its documented columns, non-empty figures, and the
+//! repartitioning cost model fitted from the data.
+use mpi_harness::open_mpi_local_env;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn study(name: &str, extra: &[&str]) -> (PathBuf, String) {
+    let dir = std::env::temp_dir().join(format!("tridem-study-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/silo-1000.toml");
+    let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(["study", name, "--steps", "30", "--metrics-every", "5"])
+        .arg("--scene")
+        .arg(&scene)
+        .arg("--output")
+        .arg(&dir)
+        .args(extra)
+        .envs(open_mpi_local_env())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{name}: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (dir, stdout)
+}
+
+/// The summary's rows as maps from column to value.
+fn rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(dir.join("summary.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    for column in [
+        "label",
+        "ranks",
+        "seconds_per_step",
+        "triangle_imbalance_mean",
+        "partition_seconds",
+        "migration_seconds",
+        "wait_seconds",
+        "ghosts_received",
+    ] {
+        assert!(head.iter().any(|h| h == column), "no column {column}");
+    }
+    lines
+        .map(|l| {
+            head.iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+fn figure(dir: &Path, name: &str) {
+    let svg = std::fs::read_to_string(dir.join(name)).unwrap();
+    assert!(
+        svg.contains("<svg") && svg.contains("<polyline"),
+        "{name} draws no line"
+    );
+}
+
+fn metrics(dir: &Path, label: &str) -> Vec<serde_json::Value> {
+    let text = std::fs::read_to_string(dir.join("runs").join(format!("{label}.jsonl"))).unwrap();
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+#[test]
+fn repartition_frequency_fits_its_cost_model_to_the_runs() {
+    let (dir, out) = study("repartition-frequency", &["--every", "5,0"]);
+    let rows = rows(&dir);
+    let labels: Vec<&str> = rows.iter().map(|r| r["label"].as_str()).collect();
+    assert_eq!(labels, ["every-5", "never"]);
+    for r in &rows {
+        assert!(r["seconds_per_step"].parse::<f64>().unwrap() > 0.0);
+        assert!(r["triangle_imbalance_mean"].parse::<f64>().unwrap() >= 1.0);
+    }
+    // Repartitioning every 5 steps partitions 6 times in 30 steps, never once.
+    let parts = |r: &std::collections::HashMap<String, String>| {
+        r["partition_seconds"].parse::<f64>().unwrap()
+    };
+    assert!(parts(&rows[0]) > parts(&rows[1]), "{rows:?}");
+    assert_eq!(metrics(&dir, "every-5").len(), 6);
+    figure(&dir, "sections.svg");
+    figure(&dir, "imbalance.svg");
+    // The model's prediction is in model.csv, one row per run.
+    let model = std::fs::read_to_string(dir.join("model.csv")).unwrap();
+    assert_eq!(model.lines().count(), 3, "{model}");
+    assert!(out.contains("the model recommends"), "{out}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn partitioners_and_exchange_studies_write_their_data_and_figures() {
+    let (dir, _) = study("partitioners", &["--repartition-every", "10"]);
+    assert_eq!(rows(&dir).len(), 5);
+    for p in ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"] {
+        let m = metrics(&dir, p);
+        assert_eq!(m.len(), 6, "{p}");
+        assert_eq!(m[0]["sum"]["owned_bodies"], 1000.0, "{p}");
+    }
+    figure(&dir, "imbalance.svg");
+    figure(&dir, "step-time.svg");
+    let _ = std::fs::remove_dir_all(&dir);
+
+    let (dir, _) = study("exchange", &["--ranks", "2,3"]);
+    let rows = rows(&dir);
+    let labels: Vec<&str> = rows.iter().map(|r| r["label"].as_str()).collect();
+    assert_eq!(
+        labels,
+        ["blocking-2", "nonblocking-2", "blocking-3", "nonblocking-3"]
+    );
+    figure(&dir, "exchange.svg");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_study_refuses_one_rank_and_writes_nothing() {
+    let dir = std::env::temp_dir().join(format!("tridem-study-{}-refused", std::process::id()));
+    let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(["study", "exchange", "--ranks", "1,2", "--output"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--ranks 1"));
+    assert!(!dir.exists());
+}
