@@ -52,6 +52,11 @@ pub fn run(args: &StudyArgs) -> CliResult {
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("out/study-{}", args.name.name())));
+    if let Some(r) = args.ranks.iter().find(|&&r| r < 2) {
+        return Err(CliError::input(format!(
+            "--ranks {r}: a study compares distributed runs, of 2 ranks or more"
+        )));
+    }
     if dir.join("summary.csv").exists() && !args.overwrite {
         return Err(CliError::input(format!(
             "{}: holds an earlier study; write to another directory or replace it with --overwrite",
@@ -62,11 +67,6 @@ pub fn run(args: &StudyArgs) -> CliResult {
         return Err(CliError::input(format!(
             "{}: no such scene",
             args.scene.display()
-        )));
-    }
-    if let Some(r) = args.ranks.iter().find(|&&r| r < 2) {
-        return Err(CliError::input(format!(
-            "--ranks {r}: a study compares distributed runs, of 2 ranks or more"
         )));
     }
     let specs = specs(args);
