@@ -41,16 +41,16 @@ study() {
   } >> "$page"
 }
 mkdir -p out
-study repartition-frequency "Repartitioning every K steps (never: at the start only) on the\
-1,000-particle silo: per-step time of each section against K, and the imbalance of owned triangles\
-over the run. The cost model amortises one repartitioning over K steps and charges the measured\
+study repartition-frequency "Repartitioning every K steps (never: at the start only) on the \
+1,000-particle silo: per-step time of each section against K, and the imbalance of the ranks' busy time \
+over the run (particles keep their rank between repartitionings, so their count stays balanced while their work does not). The cost model amortises one repartitioning over K steps and charges the measured \
 imbalance at a fitted rate; its recommendation is printed below the table with the measured best."
-study partitioners "The five partitioners on the same run, repartitioning every 20 steps:\
-imbalance of owned triangles and time per step over the run. Partition and migration seconds, and\
+study partitioners "The five partitioners on the same run, repartitioning every 20 steps: \
+imbalance of the ranks' busy time and time per step over the run. Partition and migration seconds, and \
 ghosts per rank, are in the table."
-study exchange "Blocking against non-blocking ghost exchange on 2, 3 and 4 ranks: the time\
-each rank waits for its ghosts after (non-blocking) or before (blocking) the detection among its\
-own bodies, and the step time. On a machine with fewer cores than ranks, ranks share cores\
+study exchange "Blocking against non-blocking ghost exchange on 2, 3 and 4 ranks: the time \
+each rank waits for its ghosts after (non-blocking) or before (blocking) the detection among its \
+own bodies, and the step time. On a machine with fewer cores than ranks, ranks share cores \
 (oversubscribed) and the waits measure that sharing as much as the network." --ranks 2,3,4
 mv "$page" docs/results.md
 echo "docs/results.md regenerated" >&2

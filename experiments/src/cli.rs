@@ -71,8 +71,8 @@ pub struct StudyArgs {
     /// Threads per rank.
     #[arg(long, default_value_t = 1, value_parser = at_least_one)]
     pub threads: usize,
-    /// Steps per run.
-    #[arg(long, default_value_t = 1000)]
+    /// Steps per run (the silo empties for 0.15 s).
+    #[arg(long, default_value_t = 3000)]
     pub steps: u64,
     /// The repartitioning intervals K of repartition-frequency (0: never).
     #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0")]

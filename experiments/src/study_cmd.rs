@@ -212,18 +212,23 @@ fn mean(r: &Ran, field: &str) -> f64 {
         .unwrap_or(0.0)
 }
 
-/// The mean over the run's metrics lines of the triangle imbalance.
-fn mean_imbalance(r: &Ran) -> f64 {
-    let v: Vec<f64> = r
-        .lines
-        .iter()
-        .filter_map(|l| l["triangle_imbalance"].as_f64())
-        .collect();
+/// The mean over the run's metrics lines of an imbalance (max/mean over ranks).
+fn mean_of_lines(r: &Ran, field: &str) -> f64 {
+    let v: Vec<f64> = r.lines.iter().filter_map(|l| l[field].as_f64()).collect();
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
+/// The mean imbalance of the ranks' work (busy seconds): what a rank that
+/// keeps its particles between repartitionings drifts into, while their
+/// count stays what the partitioner gave.
+fn mean_imbalance(r: &Ran) -> f64 {
+    mean_of_lines(r, "busy_imbalance")
+}
+
 fn summary_csv(ran: &[Ran]) -> String {
-    let mut s = String::from("label,ranks,setting,seconds_per_step,triangle_imbalance_mean,busy_imbalance,max_wait_seconds");
+    let mut s = String::from(
+        "label,ranks,setting,seconds_per_step,triangle_imbalance_mean,busy_imbalance_mean,max_wait_seconds",
+    );
     for m in MEANS {
         write!(s, ",{m}").expect("string");
     }
@@ -236,8 +241,8 @@ fn summary_csv(ran: &[Ran]) -> String {
             r.spec.ranks,
             r.spec.x,
             r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
+            mean_of_lines(r, "triangle_imbalance"),
             mean_imbalance(r),
-            r.summary["busy_imbalance"].as_f64().unwrap_or(1.0),
             r.summary["per_step_over_ranks"]["wait_seconds"]["max"]
                 .as_f64()
                 .unwrap_or(0.0),
@@ -271,7 +276,7 @@ fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
                     .lines
                     .iter()
                     .map(|l| {
-                        let v = if field == "triangle_imbalance" {
+                        let v = if field.ends_with("imbalance") {
                             l[field].as_f64().unwrap_or(1.0)
                         } else {
                             scale * per_step(l, field, args.metrics_every)
@@ -333,26 +338,26 @@ fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
                 true,
             )
             .map_err(plot_err)?;
-            let caption = format!("{scene}: imbalance of owned triangles (max/mean) over the run");
+            let caption = format!("{scene}: imbalance of the ranks' busy time over the run");
             lines(
                 &dir.join("imbalance.svg"),
                 &caption,
-                ("step", "triangle imbalance"),
-                &over_steps("triangle_imbalance", 1.0),
+                ("step", "busy imbalance (max/mean)"),
+                &over_steps("busy_imbalance", 1.0),
                 false,
             )
             .map_err(plot_err)?;
         }
         StudyName::Partitioners => {
             let caption = format!(
-                "{scene}, {} ranks, repartition every {}: imbalance of owned triangles",
+                "{scene}, {} ranks, repartition every {}: imbalance of the ranks' busy time",
                 args.ranks[0], args.repartition_every
             );
             lines(
                 &dir.join("imbalance.svg"),
                 &caption,
-                ("step", "triangle imbalance (max/mean)"),
-                &over_steps("triangle_imbalance", 1.0),
+                ("step", "busy imbalance (max/mean)"),
+                &over_steps("busy_imbalance", 1.0),
                 false,
             )
             .map_err(plot_err)?;
@@ -427,7 +432,7 @@ struct Model {
 
 /// The cost model t(K) = t0 + C/K + β (I(K) − 1): C, the measured seconds
 /// of one repartitioning (partition and migration), amortised over K steps;
-/// I(K), the measured mean imbalance of owned triangles at that K, costing
+/// I(K), the measured mean imbalance of the ranks' busy time at that K, costing
 /// β seconds per step per unit of imbalance. t0 and β are fitted by least
 /// squares to the measured step times; the model's best K is compared with
 /// the measured best.
@@ -458,7 +463,7 @@ fn cost_model(ran: &[Ran]) -> Model {
     let beta = if sxx > 0.0 { sxy / sxx } else { 0.0 };
     let t0 = my - beta * mx;
     let mut csv = String::from(
-        "label,K,measured_seconds_per_step,predicted_seconds_per_step,imbalance_mean\n",
+        "label,K,measured_seconds_per_step,predicted_seconds_per_step,busy_imbalance_mean\n",
     );
     let mut best = (f64::INFINITY, String::new());
     let mut measured_best = (f64::INFINITY, String::new());
