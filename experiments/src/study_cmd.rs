@@ -1,7 +1,8 @@
 //! `tridem study NAME`: questions a DEM user asks before spending an
 //! allocation, answered on real distributed runs of a scene. Each study
 //! starts its runs under mpirun (`$MPIRUN`, default `mpirun`, with
-//! `$MPIRUN_ARGS`, default `--oversubscribe`), keeps every run's metrics
+//! `$MPIRUN_ARGS`, default `--oversubscribe`; `MPIRUN=srun` inside a SLURM
+//! allocation), keeps every run's metrics
 //! (`DIR/runs/LABEL.jsonl`), writes one summary CSV and its figures (SVG),
 //! and prints a short table.
 
@@ -162,10 +163,13 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
     let metrics = dir.join("runs").join(format!("{}.jsonl", spec.label));
     let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
     let launcher = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
-    let extra = std::env::var("MPIRUN_ARGS").unwrap_or_else(|_| "--oversubscribe".into());
+    // SLURM's srun takes the task count as -n and needs no oversubscription.
+    let srun = launcher.ends_with("srun");
+    let extra = std::env::var("MPIRUN_ARGS")
+        .unwrap_or_else(|_| if srun { "" } else { "--oversubscribe" }.into());
     let out = Command::new(&launcher)
         .args(extra.split_whitespace())
-        .args(["-np", &spec.ranks.to_string()])
+        .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])
         .arg(exe)
         .arg("run")
         .arg(&args.scene)
