@@ -27,6 +27,101 @@ use ndarray::{Array1, Array2};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// An exclusive lock on an output directory, held while a run writes it:
+/// a second run into the directory is refused before it changes anything.
+/// The lock file goes when the lock does.
+pub struct DirLock {
+    file: std::fs::File,
+    path: PathBuf,
+}
+
+impl Drop for DirLock {
+    fn drop(&mut self) {
+        // Unlinked while still locked: a run that opened it meanwhile fails
+        // its try_lock and is refused, as it should be.
+        let _ = std::fs::remove_file(&self.path);
+        let _ = self.file.unlock();
+    }
+}
+
+/// Locks `dir` (created if missing) for this process.
+pub fn lock_dir(dir: &Path) -> CliResult<DirLock> {
+    use std::io::{Read, Seek, Write};
+    create_output_dir(dir)?;
+    let path = dir.join("tridem.lock");
+    let io = |e: std::io::Error| CliError::runtime(format!("{}: {e}", path.display()));
+    let mut file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(false)
+        .open(&path)
+        .map_err(io)?;
+    match file.try_lock() {
+        Ok(()) => {
+            file.set_len(0).map_err(io)?;
+            file.rewind().map_err(io)?;
+            write!(file, "{}", std::process::id()).map_err(io)?;
+            Ok(DirLock { file, path })
+        }
+        Err(std::fs::TryLockError::WouldBlock) => {
+            let mut pid = String::new();
+            let _ = file.read_to_string(&mut pid);
+            Err(CliError::input(format!(
+                "{}: in use by another tridem run (pid {}); wait for it to end, or write elsewhere",
+                dir.display(),
+                pid.trim()
+            )))
+        }
+        Err(std::fs::TryLockError::Error(e)) => Err(io(e)),
+    }
+}
+
+/// Opens the output of a run in `dir`: appended to when the run resumes
+/// into its own directory, created otherwise (refused over an earlier run's
+/// output unless `overwrite`, which replaces the whole run: its output and
+/// its checkpoint). Returns the output, whether the present state is still
+/// to be written as an output step, and the directory's lock. Nothing is
+/// changed before every check has passed and the lock is held.
+pub fn open_run_output(
+    dir: &Path,
+    resume: Option<&Path>,
+    overwrite: bool,
+    sim: &Simulation,
+) -> CliResult<(Output, bool, DirLock)> {
+    let run_h5 = dir.join("run.h5");
+    if resume.is_none() && run_h5.exists() && !overwrite {
+        return Err(CliError::input(format!(
+            "{}: holds the output of an earlier run; go on with it with --resume {}, \
+             write to another directory, or replace it with --overwrite",
+            run_h5.display(),
+            dir.join("checkpoint.h5").display()
+        )));
+    }
+    let lock = lock_dir(dir)?;
+    if let Some(from) = resume.filter(|_| run_h5.exists()) {
+        // Its own checkpoint is the truth of the directory: output steps
+        // past it were written by a run killed before its checkpoint.
+        let own = same_file(from, &dir.join("checkpoint.h5"));
+        let (out, current) = Output::append(dir, sim, own)?;
+        return Ok((out, !current, lock));
+    }
+    let checkpoint = dir.join("checkpoint.h5");
+    if checkpoint.exists() && resume.is_none_or(|r| !same_file(r, &checkpoint)) {
+        std::fs::remove_file(&checkpoint).map_err(|e| {
+            CliError::runtime(format!("{}: cannot replace: {e}", checkpoint.display()))
+        })?;
+    }
+    Ok((Output::create(dir, sim)?, true, lock))
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
 pub struct Output {
     file: hdf5::File,
     dir: PathBuf,
@@ -77,10 +172,12 @@ impl Output {
 
     /// Opens the output of a run that `sim` resumes, to append to it; and
     /// whether its last step is `sim`'s present state (a checkpoint is taken
-    /// with each output step). Refused when the file holds output of a later
-    /// time than `sim`'s: it belongs to a run that went further than the
-    /// checkpoint, and appending would interleave two histories.
-    pub fn append(dir: &Path, sim: &Simulation) -> CliResult<(Output, bool)> {
+    /// with each output step). Output steps of a later time than `sim`'s
+    /// are dropped when `drop_later` (the directory's own checkpoint is
+    /// resumed: a run killed between an output step and its checkpoint
+    /// left them); otherwise refused: they belong to a run that went further
+    /// than the checkpoint, and appending would interleave two histories.
+    pub fn append(dir: &Path, sim: &Simulation, drop_later: bool) -> CliResult<(Output, bool)> {
         let path = dir.join("run.h5");
         let fail = |why: String| CliError::input(format!("{}: {why}", path.display()));
         let file = hdf5::File::open_rw(&path).map_err(|e| fail(e.to_string()))?;
@@ -119,6 +216,14 @@ impl Output {
                 s.k, s.bodies
             )));
         }
+        if drop_later {
+            while steps.last().is_some_and(|s| s.time > time) {
+                let last = steps.pop().expect("a step");
+                group
+                    .unlink(&last.k.to_string())
+                    .map_err(|e| fail(format!("steps/{}: {e}", last.k)))?;
+            }
+        }
         if let Some(s) = steps.iter().find(|s| s.time > time) {
             return Err(fail(format!(
                 "holds output step {} at t = {:e} s, after the checkpoint's t = {time:e} s; \
@@ -132,6 +237,8 @@ impl Output {
             dir: dir.to_path_buf(),
             steps,
         };
+        out.file.flush().map_err(h5err)?;
+        out.write_xdmf()?;
         Ok((out, current))
     }
 

@@ -3,7 +3,6 @@
 use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
-use crate::output::Output;
 use crate::sections::{label, section_rows};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
@@ -57,21 +56,13 @@ pub fn run(args: &RunArgs) -> CliResult {
     };
     // Resumed into the directory it was written to, the output goes on in the
     // same file; a fresh run starts its own.
-    let (mut out, write_first) = match &args.output {
-        Some(dir) if args.resume.is_some() && dir.join("run.h5").exists() => {
-            let (o, current) = Output::append(dir, &sim)?;
-            (Some(o), !current)
+    let (mut out, write_first, _lock) = match &args.output {
+        Some(dir) => {
+            let (o, first, lock) =
+                crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, &sim)?;
+            (Some(o), first, Some(lock))
         }
-        Some(dir) if dir.join("run.h5").exists() && !args.overwrite => {
-            return Err(CliError::input(format!(
-                "{}: holds the output of an earlier run; go on with it with --resume {}, \
-                 write to another directory, or replace it with --overwrite",
-                dir.join("run.h5").display(),
-                dir.join("checkpoint.h5").display()
-            )))
-        }
-        Some(dir) => (Some(Output::create(dir, &sim)?), true),
-        None => (None, false),
+        None => (None, false, None),
     };
     let checkpoint_path = args.output.as_ref().map(|d| d.join("checkpoint.h5"));
     eprintln!(

@@ -75,6 +75,8 @@ fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
 
 /// What rank 0 writes: output steps, checkpoints and metrics.
 struct Writer {
+    /// Held while the run writes its directory.
+    _lock: Option<crate::output::DirLock>,
     out: Option<Output>,
     checkpoint: Option<std::path::PathBuf>,
     metrics: Option<std::io::BufWriter<std::fs::File>>,
@@ -244,21 +246,13 @@ fn open_writer(args: &RunArgs, sim: &Simulation) -> CliResult<Option<Writer>> {
             m.display()
         )));
     }
-    let (out, write_first) = match &args.output {
-        Some(dir) if args.resume.is_some() && dir.join("run.h5").exists() => {
-            let (o, current) = Output::append(dir, sim)?;
-            (Some(o), !current)
+    let (out, write_first, lock) = match &args.output {
+        Some(dir) => {
+            let (o, first, lock) =
+                crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, sim)?;
+            (Some(o), first, Some(lock))
         }
-        Some(dir) if dir.join("run.h5").exists() && !args.overwrite => {
-            return Err(CliError::input(format!(
-                "{}: holds the output of an earlier run; go on with it with --resume {}, \
-                 write to another directory, or replace it with --overwrite",
-                dir.join("run.h5").display(),
-                dir.join("checkpoint.h5").display()
-            )))
-        }
-        Some(dir) => (Some(Output::create(dir, sim)?), true),
-        None => (None, false),
+        None => (None, false, None),
     };
     let mut out = out;
     if let Some(o) = out.as_mut().filter(|_| write_first) {
@@ -271,6 +265,7 @@ fn open_writer(args: &RunArgs, sim: &Simulation) -> CliResult<Option<Writer>> {
         None => None,
     };
     Ok(Some(Writer {
+        _lock: lock,
         out,
         checkpoint: args.output.as_ref().map(|d| d.join("checkpoint.h5")),
         metrics,

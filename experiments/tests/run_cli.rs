@@ -454,3 +454,109 @@ fn a_run_stopped_by_sigterm_checkpoints_the_step_it_reached() {
     assert_eq!(checkpoint_of(&stopped), checkpoint_of(&whole));
     let _ = std::fs::remove_dir_all(base);
 }
+
+fn positions_of_every_step(run_h5: &std::path::Path) -> Vec<Vec<u64>> {
+    let f = hdf5::File::open(run_h5).unwrap();
+    let steps = f.group("steps").unwrap();
+    (0..steps.member_names().unwrap().len())
+        .map(|k| {
+            let g = steps.group(&k.to_string()).unwrap();
+            let p: ndarray::Array2<f64> = g.dataset("positions").unwrap().read_2d().unwrap();
+            p.iter().map(|x| x.to_bits()).collect()
+        })
+        .collect()
+}
+
+#[test]
+fn a_second_run_into_a_directory_in_use_is_refused_and_changes_nothing() {
+    let dir = std::env::temp_dir().join(format!("tridem-lock-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_str().unwrap();
+    let silo = scene("silo-1000.toml");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_tridem"))
+        .args(["run", &silo, "--steps", "3000", "--quiet", "--output", d])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !dir.join("run.xmf").exists() {
+        assert!(
+            start.elapsed().as_secs() < 60,
+            "the first run did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let (code, _, err) = tridem(&["run", &silo, "--steps", "10", "--output", d, "--overwrite"]);
+    let still_running = first.try_wait().unwrap().is_none();
+    assert_eq!(code, 2, "{err}");
+    if still_running {
+        assert!(err.contains("in use by another tridem run (pid"), "{err}");
+    }
+    assert!(first.wait().unwrap().success());
+    // The first run's output is whole: steps 0 .. 3000 every 1000.
+    assert_eq!(positions_of_every_step(&dir.join("run.h5")).len(), 4);
+    assert!(!dir.join("tridem.lock").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn overwrite_replaces_the_whole_run_checkpoint_included() {
+    let dir = std::env::temp_dir().join(format!("tridem-overwrite-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_str().unwrap();
+    let drop = scene("drop.toml");
+    let (code, _, err) = tridem(&["run", &drop, "--steps", "400", "--quiet", "--output", d]);
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("checkpoint.h5").exists());
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--steps",
+        "0",
+        "--quiet",
+        "--output",
+        d,
+        "--overwrite",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // No step was run: no checkpoint of this run, and none of the old one.
+    assert!(!dir.join("checkpoint.h5").exists());
+    assert_eq!(positions_of_every_step(&dir.join("run.h5")).len(), 1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_killed_between_output_and_checkpoint_resumes_to_the_bit() {
+    let base = std::env::temp_dir().join(format!("tridem-window-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    let (straight, killed) = (base.join("straight"), base.join("killed"));
+    let drop = scene("drop.toml");
+    let run = |dir: &std::path::Path, steps: &str, resume: bool| {
+        let d = dir.to_str().unwrap().to_string();
+        let c = dir.join("checkpoint.h5").to_str().unwrap().to_string();
+        let mut args = vec!["run", &drop, "--steps", steps, "--quiet", "--output", &d];
+        if resume {
+            args.extend(["--resume", &c]);
+        }
+        let (code, _, err) = tridem(&args);
+        assert_eq!(code, 0, "{err}");
+    };
+    run(&straight, "400", false);
+    // The state a kill leaves after output step 400 and before its
+    // checkpoint: the output at step 400, the checkpoint at step 200.
+    run(&killed, "200", false);
+    let at_200 = std::fs::read(killed.join("checkpoint.h5")).unwrap();
+    run(&killed, "200", true);
+    std::fs::write(killed.join("checkpoint.h5"), at_200).unwrap();
+    run(&killed, "200", true);
+    assert_eq!(
+        positions_of_every_step(&straight.join("run.h5")),
+        positions_of_every_step(&killed.join("run.h5"))
+    );
+    assert_eq!(
+        std::fs::read(straight.join("checkpoint.h5")).unwrap(),
+        std::fs::read(killed.join("checkpoint.h5")).unwrap()
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
