@@ -46,6 +46,34 @@ pub struct Checkpoint {
     pub effects: Vec<EffectState>,
 }
 
+impl Checkpoint {
+    /// A digest of every number and name the checkpoint holds (FNV-1a over
+    /// their bits): stored with it on disk, so that a damaged file (one
+    /// flipped bit) is refused rather than resumed from garbage.
+    pub fn checksum(&self) -> u64 {
+        let mut h = crate::world::Fnv1a::default();
+        h.f64(self.time);
+        h.u64(self.step);
+        h.f64(self.dt);
+        h.u64(self.fingerprint);
+        h.u64(self.bodies.len() as u64);
+        for b in &self.bodies {
+            let numbers = [b.x.to_array(), b.v.to_array(), b.l.to_array()];
+            numbers.iter().flatten().for_each(|&c| h.f64(c));
+            b.q.to_array().into_iter().for_each(|c| h.f64(c));
+        }
+        for v in self.force.iter().chain(&self.torque) {
+            v.to_array().into_iter().for_each(|c| h.f64(c));
+        }
+        for e in &self.effects {
+            h.bytes(e.effect.as_bytes());
+            h.u64(e.values.len() as u64);
+            e.values.iter().for_each(|&v| h.f64(v));
+        }
+        h.0
+    }
+}
+
 /// Why a checkpoint does not fit the scene it is resumed with.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("{0}")]

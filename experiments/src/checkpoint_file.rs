@@ -1,7 +1,8 @@
 //! A [`Checkpoint`] on disk, as HDF5, so that h5dump and h5py read it too.
 //!
 //! Layout of `checkpoint.h5`:
-//! - attributes `format` (= 1), `time`, `step`, `dt`, `fingerprint` (the scene's)
+//! - attributes `format` (= 2), `time`, `step`, `dt`, `fingerprint` (the scene's),
+//!   `checksum` (of every number and name below: a damaged file is refused)
 //! - `positions`, `velocities`, `angular_momenta`, `forces`, `torques` (N×3),
 //!   `orientations` (N×4, xyzw)
 //! - `effects/<name>`: each stateful effect's numbers, with its place in the
@@ -16,7 +17,7 @@ use glam::{DQuat, DVec3};
 use ndarray::{Array1, Array2};
 use std::path::Path;
 
-const FORMAT: u64 = 1;
+const FORMAT: u64 = 2;
 
 pub fn write(path: &Path, c: &Checkpoint) -> CliResult {
     let name = path.file_name().map_or_else(
@@ -49,6 +50,9 @@ fn write_to(path: &Path, c: &Checkpoint) -> hdf5::Result<()> {
     file.new_attr::<u64>()
         .create("fingerprint")?
         .write_scalar(&c.fingerprint)?;
+    file.new_attr::<u64>()
+        .create("checksum")?
+        .write_scalar(&c.checksum())?;
     let rows = |v: Vec<[f64; 3]>| Array2::from_shape_fn((v.len(), 3), |(r, k)| v[r][k]);
     let b = &c.bodies;
     let columns: [(&str, Vec<[f64; 3]>); 5] = [
@@ -175,7 +179,7 @@ pub fn read(path: &Path) -> CliResult<Checkpoint> {
         ));
     }
     effects.sort_by_key(|(p, _)| *p);
-    Ok(Checkpoint {
+    let c = Checkpoint {
         time: attr_f64("time")?,
         step: attr_u64("step")?,
         dt: attr_f64("dt")?,
@@ -184,5 +188,14 @@ pub fn read(path: &Path) -> CliResult<Checkpoint> {
         force: vec3("forces")?,
         torque: vec3("torques")?,
         effects: effects.into_iter().map(|(_, e)| e).collect(),
-    })
+    };
+    let stored = attr_u64("checksum")?;
+    if stored != c.checksum() {
+        return Err(fail(format!(
+            "damaged: its checksum {stored:#018x} does not match its contents ({:#018x}); \
+             resume from an earlier copy",
+            c.checksum()
+        )));
+    }
+    Ok(c)
 }

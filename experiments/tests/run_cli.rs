@@ -560,3 +560,46 @@ fn a_run_killed_between_output_and_checkpoint_resumes_to_the_bit() {
     );
     let _ = std::fs::remove_dir_all(&base);
 }
+
+#[test]
+fn a_damaged_checkpoint_is_refused() {
+    let dir = std::env::temp_dir().join(format!("tridem-damaged-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_str().unwrap();
+    let drop = scene("drop.toml");
+    let (code, _, err) = tridem(&["run", &drop, "--steps", "200", "--quiet", "--output", d]);
+    assert_eq!(code, 0, "{err}");
+    let good = std::fs::read(dir.join("checkpoint.h5")).unwrap();
+    // A bit flipped in the positions (the first dataset of doubles holding
+    // a body's x = the lattice's first x, found by its bytes).
+    let f = hdf5::File::open(dir.join("checkpoint.h5")).unwrap();
+    let x: ndarray::Array2<f64> = f.dataset("positions").unwrap().read_2d().unwrap();
+    drop_file(f);
+    let needle = x[[0, 0]].to_le_bytes();
+    let at = good
+        .windows(8)
+        .position(|w| w == needle)
+        .expect("the position's bytes in the file");
+    let mut bad = good.clone();
+    bad[at] ^= 1;
+    let damaged = dir.join("damaged.h5");
+    std::fs::write(&damaged, &bad).unwrap();
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--resume",
+        damaged.to_str().unwrap(),
+        "--steps",
+        "1",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("damaged") && err.contains("damaged.h5"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn drop_file(f: hdf5::File) {
+    f.close().unwrap();
+}
