@@ -412,11 +412,28 @@ impl<'c> DistributedSimulation<'c> {
         }
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let mut waited = Instant::now();
-        let local = [moved, f64::from(u8::from(stop))];
-        let mut global = [0.0; 2];
+        // Any state gone non-finite ends the run on every rank.
+        let finite = self.owned.iter().all(|&i| {
+            let b = &self.world.bodies[i];
+            b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite()
+        });
+        let local = [
+            moved,
+            f64::from(u8::from(stop)),
+            f64::from(u8::from(!finite)),
+        ];
+        let mut global = [0.0; 3];
         self.comm
             .all_reduce_into(&local[..], &mut global[..], SystemOperation::max());
         let mut wait = waited.elapsed().as_secs_f64();
+        if global[2] > 0.0 {
+            return fail(format!(
+                "the simulation became non-finite at step {} (t = {:e} s): the time step is \
+                 too large for this scene, or its input holds a non-finite value",
+                self.world.step + 1,
+                self.world.time + h
+            ));
+        }
         // NaN (a body's state gone bad) redraws too.
         self.travel += global[0];
         let within = self.travel <= 0.5 * self.settings.skin;

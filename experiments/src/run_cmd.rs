@@ -104,12 +104,9 @@ pub fn run(args: &RunArgs) -> CliResult {
     let looped: CliResult<Option<u64>> = dem::busy_workers::with_busy_workers(|| {
         for s in 1..=steps {
             sim.step();
-            if sim
-                .world
-                .bodies
-                .iter()
-                .any(|b| !b.x.is_finite() || !b.v.is_finite())
-            {
+            if sim.world.bodies.iter().any(|b| {
+                !(b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite())
+            }) {
                 bar.abandon();
                 return Err(CliError::runtime(format!(
                     "the simulation became non-finite at step {s} (t = {:e} s): the time step is too large for this scene",
