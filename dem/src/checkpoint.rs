@@ -19,6 +19,18 @@ pub struct BodyState {
     pub l: DVec3,
 }
 
+impl BodyState {
+    /// The moving state of `b`.
+    pub fn of(b: &crate::body::Body) -> BodyState {
+        BodyState {
+            x: b.x,
+            q: b.q,
+            v: b.v,
+            l: b.l,
+        }
+    }
+}
+
 /// What one effect of the pipeline carries from step to step, as numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EffectState {

@@ -193,17 +193,7 @@ impl Simulation {
             step: self.world.step,
             dt: self.dt,
             fingerprint: self.world.fingerprint(),
-            bodies: self
-                .world
-                .bodies
-                .iter()
-                .map(|b| BodyState {
-                    x: b.x,
-                    q: b.q,
-                    v: b.v,
-                    l: b.l,
-                })
-                .collect(),
+            bodies: self.world.bodies.iter().map(BodyState::of).collect(),
             // Obstacles do not move: what pushes on them is no part of the
             // state (and split across ranks, no one rank sums it).
             force: self.loads(&self.forces.force),

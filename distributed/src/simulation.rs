@@ -680,17 +680,7 @@ impl<'c> DistributedSimulation<'c> {
             return None;
         }
         let n = self.world.bodies.len();
-        let mut bodies: Vec<BodyState> = self
-            .world
-            .bodies
-            .iter()
-            .map(|b| BodyState {
-                x: b.x,
-                q: b.q,
-                v: b.v,
-                l: b.l,
-            })
-            .collect();
+        let mut bodies: Vec<BodyState> = self.world.bodies.iter().map(BodyState::of).collect();
         let (mut force, mut torque) = (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]);
         for r in &records {
             let i = r.id as usize;
