@@ -173,6 +173,9 @@ struct KernelSpec {
     iterations: Option<usize>,
     /// Rounds of the penalty kernel's exact finish (penalty and hybrid methods).
     finish_rounds: Option<usize>,
+    /// The penalty kernel certifies a pair when its error bound is at most
+    /// tolerance × the pair's size (penalty and hybrid methods).
+    tolerance: Option<f64>,
 }
 
 /// Bounds of the penalty kernel's settings in a scene: iteration counts are
@@ -383,6 +386,33 @@ impl Scene {
         )
     }
 
+    /// Reads a scene file with `overrides` set over it, each
+    /// `section.key=value` with a TOML value (a bare word is a string), as
+    /// `tridem run --set kernel.schedule=dynamic` does. The file is checked
+    /// as written first, so its own errors name its lines.
+    pub fn load_with(path: &Path, overrides: &[String]) -> Result<Scene, SceneError> {
+        let scene = Scene::load(path)?;
+        if overrides.is_empty() {
+            return Ok(scene);
+        }
+        let file = format!("{} with --set {}", path.display(), overrides.join(" "));
+        let err = |cause: String| SceneError {
+            file: file.clone(),
+            line: 0,
+            cause,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+        let mut table: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| err(e.to_string()))?;
+        for o in overrides {
+            set_override(&mut table, o).map_err(err)?;
+        }
+        let text = toml::to_string(&table).map_err(|e| err(e.to_string()))?;
+        Scene::parse(&text, &file, path.parent().unwrap_or(Path::new(".")))
+            .map_err(|e| err(e.cause))
+    }
+
     /// Builds a scene from TOML text; `file` names it in errors and `dir`
     /// resolves relative mesh paths.
     pub fn parse(text: &str, file: &str, dir: &Path) -> Result<Scene, SceneError> {
@@ -398,6 +428,35 @@ impl Scene {
         })?;
         build(&ctx, spec)
     }
+}
+
+/// Sets one `section.key=value` of `--set` in a scene's table.
+fn set_override(table: &mut toml::Table, o: &str) -> Result<(), String> {
+    let (path, value) = o
+        .split_once('=')
+        .ok_or_else(|| format!("--set {o}: expected section.key=value"))?;
+    let keys: Vec<&str> = path.trim().split('.').map(str::trim).collect();
+    if keys.len() < 2 || keys.iter().any(|k| k.is_empty()) {
+        return Err(format!("--set {o}: expected section.key=value"));
+    }
+    let value = value.trim();
+    let value = format!("v = {value}")
+        .parse::<toml::Table>()
+        .ok()
+        .and_then(|mut t| t.remove("v"))
+        .unwrap_or_else(|| toml::Value::String(value.to_string()));
+    let (last, sections) = keys.split_last().expect("two keys or more");
+    let mut at = table;
+    for k in sections {
+        let entry = at
+            .entry(k.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        at = entry.as_table_mut().ok_or_else(|| {
+            format!("--set {o}: {k} is not a section (lists of bodies cannot be set)")
+        })?;
+    }
+    at.insert(last.to_string(), value);
+    Ok(())
 }
 
 fn positive(
@@ -643,12 +702,25 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                 return ctx.err(span, "kernel.grain must be at least 1");
             }
             let mut penalty = PenaltyParams::default();
-            if method == Method::Brute && (k.iterations.is_some() || k.finish_rounds.is_some()) {
+            if method == Method::Brute
+                && (k.iterations.is_some() || k.finish_rounds.is_some() || k.tolerance.is_some())
+            {
                 return ctx.err(
                     span,
-                    "kernel.iterations and kernel.finish_rounds set the penalty kernel, \
-                     which method = \"brute\" does not run",
+                    "kernel.iterations, kernel.finish_rounds and kernel.tolerance set the \
+                     penalty kernel, which method = \"brute\" does not run",
                 );
+            }
+            if let Some(tol) = k.tolerance {
+                // Below a few ulps nothing is ever certified; at 1e-2 an
+                // answer may be 1% of the pair's size off.
+                if !(1e-15..=1e-2).contains(&tol) {
+                    return ctx.err(
+                        span,
+                        format!("kernel.tolerance must be between 1e-15 and 1e-2, got {tol}"),
+                    );
+                }
+                penalty.tol = tol;
             }
             if let Some(n) = k.iterations {
                 // Per-pair iteration counts are reported in a byte.

@@ -33,8 +33,9 @@ pub enum Command {
     Scaling(ScalingArgs),
     /// Plot the JSON lines of `tridem partition --json` runs (time and ghosts per partitioner).
     PartitionPlot(PartitionPlotArgs),
-    /// A study on real distributed runs (started under mpirun): repartition
-    /// frequency, partitioners, or the ghost exchange; metrics, a summary CSV and figures.
+    /// A study on real runs of a scene: repartition frequency, partitioners,
+    /// the ghost exchange (under mpirun), thread scheduling, or what kernel
+    /// accuracy costs; metrics, a summary CSV, figures (SVG and PNG) and a table.
     Study(StudyArgs),
 }
 
@@ -47,6 +48,12 @@ pub enum StudyName {
     Partitioners,
     /// Blocking against non-blocking ghost exchange, over rank counts.
     Exchange,
+    /// Static, dynamic and guided sharing of body pairs among threads, with
+    /// whole-batch and failed-pairs fallback: time, idle time, fallbacks per task.
+    Scheduling,
+    /// Kernel settings against the deviation of the trajectories from a
+    /// brute-force run, and their time per step.
+    Accuracy,
 }
 
 impl StudyName {
@@ -55,7 +62,22 @@ impl StudyName {
             StudyName::RepartitionFrequency => "repartition-frequency",
             StudyName::Partitioners => "partitioners",
             StudyName::Exchange => "exchange",
+            StudyName::Scheduling => "scheduling",
+            StudyName::Accuracy => "accuracy",
         }
+    }
+
+    /// Steps per run unless --steps says.
+    pub fn default_steps(self) -> u64 {
+        match self {
+            StudyName::Accuracy => 500,
+            _ => 3000,
+        }
+    }
+
+    /// Whether the study's runs are distributed (under mpirun) or on one node.
+    pub fn distributed(self) -> bool {
+        !matches!(self, StudyName::Scheduling | StudyName::Accuracy)
     }
 }
 
@@ -65,15 +87,19 @@ pub struct StudyArgs {
     /// The scene every run steps.
     #[arg(long, default_value = "scenes/silo-1000.toml")]
     pub scene: PathBuf,
-    /// Ranks (the exchange study runs each count; the others the first).
+    /// Ranks (the exchange study runs each count; the other distributed
+    /// studies the first; scheduling and accuracy run on one node).
     #[arg(long, value_delimiter = ',', default_value = "2")]
     pub ranks: Vec<usize>,
-    /// Threads per rank.
-    #[arg(long, default_value_t = 1, value_parser = at_least_one)]
-    pub threads: usize,
-    /// Steps per run (the silo empties for 0.15 s).
-    #[arg(long, default_value_t = 3000)]
-    pub steps: u64,
+    /// Threads per rank (default 1); the scheduling study runs each count
+    /// given (default 1 up to all cores).
+    #[arg(long, value_delimiter = ',', value_parser = at_least_one)]
+    pub threads: Vec<usize>,
+    /// Steps per run (default 3000, in which the silo empties for 0.15 s;
+    /// accuracy: 500, before the trajectories of every setting have parted
+    /// chaotically).
+    #[arg(long)]
+    pub steps: Option<u64>,
     /// The repartitioning intervals K of repartition-frequency (0: never).
     #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0")]
     pub every: Vec<u64>,
@@ -89,6 +115,12 @@ pub struct StudyArgs {
     /// Replace an earlier study in the output directory.
     #[arg(long)]
     pub overwrite: bool,
+}
+
+impl StudyArgs {
+    pub fn steps(&self) -> u64 {
+        self.steps.unwrap_or(self.name.default_steps())
+    }
 }
 
 #[derive(Args, Debug)]
@@ -137,6 +169,11 @@ pub struct RunArgs {
     /// Steps to run (default: end_time / dt of the scene).
     #[arg(long)]
     pub steps: Option<u64>,
+    /// Set a scene value over the file's, as section.key=value with a TOML
+    /// value (repeatable), e.g. --set kernel.schedule=dynamic
+    /// --set kernel.iterations=4.
+    #[arg(long = "set", value_name = "SECTION.KEY=VALUE")]
+    pub overrides: Vec<String>,
     /// Write HDF5 + XDMF output to this directory, and at each output step
     /// a checkpoint, DIR/checkpoint.h5.
     #[arg(long)]

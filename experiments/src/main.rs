@@ -16,6 +16,7 @@ mod scaling_cmd;
 mod sections;
 mod stats;
 mod study_cmd;
+mod study_node;
 
 use clap::Parser;
 use std::process::ExitCode;

@@ -1,7 +1,45 @@
-//! Plots written as SVG with plotters.
+//! Figures drawn with plotters, each written twice: SVG for documents and
+//! PNG (same name, `.png`) for viewers that do not show SVG. The PNG's text
+//! uses the DejaVu Sans font carried in `assets/`, so that figures look the
+//! same on machines without fonts.
 
+use plotters::coord::Shift;
 use plotters::prelude::*;
+use std::error::Error;
 use std::path::Path;
+
+type Res = Result<(), Box<dyn Error>>;
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let font: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        // The font is valid: a failure here is a build defect, not input.
+        plotters::style::register_font("sans-serif", FontStyle::Normal, font)
+            .map_err(|_| "font")
+            .expect("the embedded DejaVu Sans parses");
+    });
+}
+
+/// Draws one figure with `$draw(root)` into `$path` (SVG) and beside it as PNG.
+macro_rules! svg_and_png {
+    ($path:expr, $size:expr, $draw:expr) => {{
+        register_font();
+        let path: &Path = $path;
+        {
+            let root = SVGBackend::new(path, $size).into_drawing_area();
+            root.fill(&WHITE)?;
+            $draw(&root)?;
+            root.present()?;
+        }
+        let png = path.with_extension("png");
+        let root = BitMapBackend::new(&png, $size).into_drawing_area();
+        root.fill(&WHITE)?;
+        $draw(&root)?;
+        root.present()?;
+        Ok(())
+    }};
+}
 
 /// One measured setting of the penalty kernel.
 pub struct Point {
@@ -18,57 +56,61 @@ pub struct Point {
 /// Two panels against ns per pair: the median error over L (log scale; the max
 /// is in the CSV, it is set by the uncertified pairs) and the fraction of pairs
 /// certified, which decides how often the hybrid falls back.
-pub fn error_vs_time(
-    path: &Path,
+pub fn error_vs_time(path: &Path, points: &[Point], pairs: usize) -> Res {
+    svg_and_png!(path, (1100, 500), |root: &DrawingArea<_, Shift>| {
+        let (left, right) = root.split_horizontally(550);
+        accuracy_panel(&left, points, pairs, true)?;
+        accuracy_panel(&right, points, pairs, false)
+    })
+}
+
+/// Errors of exactly 0 cannot be shown on a log axis: floored here.
+const ERROR_FLOOR: f64 = 1e-17;
+
+/// The median error (log) or the fraction certified against ns per pair.
+fn accuracy_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
     points: &[Point],
     pairs: usize,
-) -> Result<(), Box<dyn std::error::Error>> {
-    // Errors of exactly 0 cannot be shown on a log axis: floor them at 1e-17.
-    const FLOOR: f64 = 1e-17;
-    let xmax = points.iter().map(|p| p.x).fold(0.0, f64::max) * 1.1;
-    let ymax = points.iter().map(|p| p.y.max(FLOOR)).fold(FLOOR, f64::max) * 100.0;
-    let root = SVGBackend::new(path, (1100, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let (left, right) = root.split_horizontally(550);
+    error: bool,
+) -> Res
+where
+    DB::ErrorType: 'static,
+{
+    let xmax = (points.iter().map(|p| p.x).fold(0.0, f64::max) * 1.1).max(1.0);
+    let ymax = points
+        .iter()
+        .map(|p| p.y.max(ERROR_FLOOR))
+        .fold(ERROR_FLOOR, f64::max)
+        * 100.0;
     let mut series: Vec<&str> = points.iter().map(|p| p.series.as_str()).collect();
     series.dedup();
-    let draw = |area: &DrawingArea<SVGBackend, plotters::coord::Shift>,
-                log: bool,
-                ydesc: &str,
-                y: &dyn Fn(&Point) -> f64|
-     -> Result<(), Box<dyn std::error::Error>> {
-        let caption = format!("penalty kernel, {pairs} random pairs: {ydesc}");
-        if log {
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, ("sans-serif", 15))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d(0.0..xmax.max(1.0), (FLOOR..ymax).log_scale())?;
-            chart
-                .configure_mesh()
-                .x_desc("ns per pair (median of repetitions)")
-                .y_label_formatter(&|v| format!("{v:.0e}"))
-                .draw()?;
-            plot_series(&mut chart, points, &series, &|p| y(p).max(FLOOR))?;
-        } else {
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, ("sans-serif", 15))
-                .margin(12)
-                .x_label_area_size(40)
-                .y_label_area_size(60)
-                .build_cartesian_2d(0.0..xmax.max(1.0), 0.0..1.05)?;
-            chart
-                .configure_mesh()
-                .x_desc("ns per pair (median of repetitions)")
-                .draw()?;
-            plot_series(&mut chart, points, &series, y)?;
-        }
-        Ok(())
+    let ydesc = if error {
+        "median error / L"
+    } else {
+        "fraction certified"
     };
-    draw(&left, true, "median error / L", &|p| p.y)?;
-    draw(&right, false, "fraction certified", &|p| p.certified)?;
-    root.present()?;
+    let caption = format!("penalty kernel, {pairs} random pairs: {ydesc}");
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(caption, ("sans-serif", 15))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60);
+    let xdesc = "ns per pair (median of repetitions)";
+    if error {
+        let mut chart = builder.build_cartesian_2d(0.0..xmax, (ERROR_FLOOR..ymax).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc(xdesc)
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()?;
+        plot_series(&mut chart, points, &series, &|p| p.y.max(ERROR_FLOOR))?;
+    } else {
+        let mut chart = builder.build_cartesian_2d(0.0..xmax, 0.0..1.05)?;
+        chart.configure_mesh().x_desc(xdesc).draw()?;
+        plot_series(&mut chart, points, &series, &|p| p.certified)?;
+    }
     Ok(())
 }
 
@@ -126,10 +168,7 @@ pub struct PartitionRecord {
 /// Two panels, partition time and ghost items (both log scale), one group of bars per
 /// workload and one bar per partitioner; the first step of each run (from the initial
 /// distribution by id).
-pub fn partition_summary(
-    path: &Path,
-    records: &[PartitionRecord],
-) -> Result<(), Box<dyn std::error::Error>> {
+pub fn partition_summary(path: &Path, records: &[PartitionRecord]) -> Res {
     let mut workloads: Vec<&str> = Vec::new();
     let mut partitioners: Vec<&str> = Vec::new();
     for r in records {
@@ -141,69 +180,68 @@ pub fn partition_summary(
         }
     }
     let first: Vec<&PartitionRecord> = records.iter().filter(|r| r.step == 0).collect();
-    let root = SVGBackend::new(path, (1000, 450)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let panels = root.split_evenly((1, 2));
-    let metrics: [(&str, Metric); 2] = [
-        ("partition time (s)", |r| r.partition_s),
-        ("ghost items", |r| r.ghost_items),
-    ];
-    for (area, (label, value)) in panels.iter().zip(metrics) {
-        let vals: Vec<f64> = first.iter().map(|r| value(r).max(1e-9)).collect();
-        let lo = vals.iter().copied().fold(f64::INFINITY, f64::min) / 2.0;
-        // Headroom above the bars for the legend.
-        let hi = vals.iter().copied().fold(0.0, f64::max) * 30.0;
-        let n = workloads.len() * (partitioners.len() + 1);
-        let mut chart = ChartBuilder::on(area)
-            .caption(label, ("sans-serif", 18))
-            .margin(10)
-            .x_label_area_size(30)
-            .y_label_area_size(60)
-            .build_cartesian_2d(0.0..n as f64, (lo..hi).log_scale())?;
-        chart
-            .configure_mesh()
-            .disable_x_mesh()
-            .x_labels(n + 1)
-            .x_label_formatter(&|x| {
-                // Name each group under its middle bar.
-                let slot = x.round() as usize;
-                let group = partitioners.len() + 1;
-                if slot % group == partitioners.len() / 2 + 1 {
-                    workloads
-                        .get(slot / group)
-                        .map_or(String::new(), |s| s.to_string())
-                } else {
-                    String::new()
-                }
-            })
-            .draw()?;
-        for (pi, p) in partitioners.iter().enumerate() {
-            let color = Palette99::pick(pi).to_rgba();
-            let bars: Vec<Rectangle<(f64, f64)>> = first
-                .iter()
-                .filter(|r| r.partitioner == *p)
-                .filter_map(|r| {
-                    let w = workloads.iter().position(|w| *w == r.workload)?;
-                    let x = (w * (partitioners.len() + 1) + pi) as f64 + 0.5;
-                    Some(Rectangle::new(
-                        [(x, lo), (x + 0.9, value(r).max(1e-9))],
-                        color.filled(),
-                    ))
+    svg_and_png!(path, (1000, 450), |root: &DrawingArea<_, Shift>| -> Res {
+        let panels = root.split_evenly((1, 2));
+        let metrics: [(&str, Metric); 2] = [
+            ("partition time (s)", |r| r.partition_s),
+            ("ghost items", |r| r.ghost_items),
+        ];
+        for (area, (label, value)) in panels.iter().zip(metrics) {
+            let vals: Vec<f64> = first.iter().map(|r| value(r).max(1e-9)).collect();
+            let lo = vals.iter().copied().fold(f64::INFINITY, f64::min) / 2.0;
+            // Headroom above the bars for the legend.
+            let hi = vals.iter().copied().fold(0.0, f64::max) * 30.0;
+            let n = workloads.len() * (partitioners.len() + 1);
+            let mut chart = ChartBuilder::on(area)
+                .caption(label, ("sans-serif", 18))
+                .margin(10)
+                .x_label_area_size(30)
+                .y_label_area_size(60)
+                .build_cartesian_2d(0.0..n as f64, (lo..hi).log_scale())?;
+            chart
+                .configure_mesh()
+                .disable_x_mesh()
+                .x_labels(n + 1)
+                .x_label_formatter(&|x| {
+                    // Name each group under its middle bar.
+                    let slot = x.round() as usize;
+                    let group = partitioners.len() + 1;
+                    if slot % group == partitioners.len() / 2 + 1 {
+                        workloads
+                            .get(slot / group)
+                            .map_or(String::new(), |s| s.to_string())
+                    } else {
+                        String::new()
+                    }
                 })
-                .collect();
-            chart.draw_series(bars)?.label(*p).legend(move |(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 10, y + 5)], color.filled())
-            });
+                .draw()?;
+            for (pi, p) in partitioners.iter().enumerate() {
+                let color = Palette99::pick(pi).to_rgba();
+                let bars: Vec<Rectangle<(f64, f64)>> = first
+                    .iter()
+                    .filter(|r| r.partitioner == *p)
+                    .filter_map(|r| {
+                        let w = workloads.iter().position(|w| *w == r.workload)?;
+                        let x = (w * (partitioners.len() + 1) + pi) as f64 + 0.5;
+                        Some(Rectangle::new(
+                            [(x, lo), (x + 0.9, value(r).max(1e-9))],
+                            color.filled(),
+                        ))
+                    })
+                    .collect();
+                chart.draw_series(bars)?.label(*p).legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 10, y + 5)], color.filled())
+                });
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperLeft)
+                .border_style(BLACK)
+                .background_style(WHITE)
+                .draw()?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .draw()?;
-    }
-    root.present()?;
-    Ok(())
+        Ok(())
+    })
 }
 
 /// One line of a [`lines`] plot.
@@ -220,7 +258,7 @@ pub fn lines(
     (xdesc, ydesc): (&str, &str),
     series: &[Series],
     log_x: bool,
-) -> Result<(), Box<dyn std::error::Error>> {
+) -> Res {
     let all = series.iter().flat_map(|s| s.points.iter());
     let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
     for &(x, y) in all {
@@ -235,41 +273,176 @@ pub fn lines(
         x1 = x0 + 1.0;
     }
     let y1 = if y1 > 0.0 { y1 * 1.1 } else { 1.0 };
-    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut builder = ChartBuilder::on(&root);
-    builder
-        .caption(caption, ("sans-serif", 18))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(70);
-    let colour = |k: usize| Palette99::pick(k).to_rgba();
-    macro_rules! draw {
-        ($chart:expr) => {{
-            let mut chart = $chart;
-            chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw()?;
-            for (k, s) in series.iter().enumerate() {
-                let c = colour(k);
+    svg_and_png!(path, (800, 500), |root: &DrawingArea<_, Shift>| -> Res {
+        let mut builder = ChartBuilder::on(root);
+        builder
+            .caption(caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70);
+        let colour = |k: usize| Palette99::pick(k).to_rgba();
+        macro_rules! draw {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw()?;
+                for (k, s) in series.iter().enumerate() {
+                    let c = colour(k);
+                    chart
+                        .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))?
+                        .label(s.name.clone())
+                        .legend(move |(x, y)| {
+                            PathElement::new([(x, y), (x + 18, y)], c.stroke_width(2))
+                        });
+                    chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
+                }
                 chart
-                    .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))?
-                    .label(s.name.clone())
-                    .legend(move |(x, y)| {
-                        PathElement::new([(x, y), (x + 18, y)], c.stroke_width(2))
-                    });
-                chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
-            }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()?;
-        }};
-    }
-    if log_x {
-        draw!(builder.build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?);
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .draw()?;
+            }};
+        }
+        if log_x {
+            draw!(builder.build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?);
+        } else {
+            draw!(builder.build_cartesian_2d(x0..x1, 0.0..y1)?);
+        }
+        Ok(())
+    })
+}
+
+/// One setting of a [`labelled_points`] plot.
+pub struct Labelled {
+    pub label: String,
+    pub x: f64,
+    pub y: f64,
+}
+
+/// One point per setting, y on a log axis, each named by a label placed
+/// where it overlaps no other label, point or the frame (a thin line joins
+/// a label pushed away from its point). Values of y at or below 0 are
+/// drawn on the axis's floor, below the least positive one, and
+/// `zero_note` says what that means.
+pub fn labelled_points(
+    path: &Path,
+    caption: &str,
+    (xdesc, ydesc): (&str, &str),
+    points: &[Labelled],
+    zero_note: &str,
+) -> Res {
+    let positive = points.iter().map(|p| p.y).filter(|&y| y > 0.0);
+    let least = positive.clone().fold(f64::INFINITY, f64::min);
+    let most = positive.fold(0.0, f64::max);
+    let (floor, ymax) = if least.is_finite() {
+        (least / 30.0, most * 3.0)
     } else {
-        draw!(builder.build_cartesian_2d(x0..x1, 0.0..y1)?);
+        (1e-3, 1.0)
+    };
+    let y_of = |p: &Labelled| p.y.max(floor);
+    let xmax = points.iter().map(|p| p.x).fold(0.0, f64::max).max(1e-12) * 1.1;
+    let xmin = points.iter().map(|p| p.x).fold(xmax, f64::min) * 0.9;
+    let ymin = floor / 1.5;
+    svg_and_png!(path, (900, 560), |root: &DrawingArea<_, Shift>| -> Res {
+        let mut chart = ChartBuilder::on(root)
+            .caption(caption, ("sans-serif", 16))
+            .margin(14)
+            .x_label_area_size(44)
+            .y_label_area_size(70)
+            .build_cartesian_2d(xmin..xmax, (ymin..ymax).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc(xdesc)
+            .y_desc(ydesc)
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()?;
+        let blue = Palette99::pick(0).to_rgba();
+        chart.draw_series(
+            points
+                .iter()
+                .map(|p| Circle::new((p.x, y_of(p)), 4, blue.filled())),
+        )?;
+        let pixels: Vec<(i32, i32)> = points
+            .iter()
+            .map(|p| chart.backend_coord(&(p.x, y_of(p))))
+            .collect();
+        let (xr, yr) = chart.plotting_area().get_pixel_range();
+        let frame = (xr.start, yr.start, xr.end, yr.end);
+        let font = ("sans-serif", 12).into_font();
+        for (p, place) in points.iter().zip(place_labels(points, &pixels, frame)) {
+            let (at, anchor) = place;
+            root.draw(&Text::new(p.label.clone(), at, font.clone()))?;
+            if let Some(from) = anchor {
+                root.draw(&PathElement::new(vec![from, at], BLACK.mix(0.4)))?;
+            }
+        }
+        if points.iter().any(|p| p.y <= floor) {
+            root.draw(&Text::new(
+                zero_note.to_string(),
+                (xr.start + 8, yr.end - 18),
+                font.clone(),
+            ))?;
+        }
+        Ok(())
+    })
+}
+
+/// Approximate text box of a label of 12-point DejaVu Sans, in pixels.
+fn label_box(text: &str, at: (i32, i32)) -> (i32, i32, i32, i32) {
+    let w = (7 * text.chars().count()) as i32;
+    (at.0, at.1, at.0 + w, at.1 + 14)
+}
+
+fn overlaps(a: (i32, i32, i32, i32), b: (i32, i32, i32, i32)) -> bool {
+    a.0 < b.2 && b.0 < a.2 && a.1 < b.3 && b.1 < a.3
+}
+
+/// A label's top-left corner, and the point to join it to when it sits away
+/// from its point.
+type Placed = ((i32, i32), Option<(i32, i32)>);
+
+/// Greedy placement: for each point the first spot around it, at growing
+/// distances, whose box stays inside the frame and clear of every point and
+/// every label already placed. Returns each label's top-left corner, and the
+/// point to join it to when it sits away from its point.
+fn place_labels(
+    points: &[Labelled],
+    pixels: &[(i32, i32)],
+    frame: (i32, i32, i32, i32),
+) -> Vec<Placed> {
+    let dots: Vec<_> = pixels
+        .iter()
+        .map(|&(x, y)| (x - 5, y - 5, x + 5, y + 5))
+        .collect();
+    let mut taken: Vec<(i32, i32, i32, i32)> = Vec::new();
+    let mut out = Vec::new();
+    for (p, &(x, y)) in points.iter().zip(pixels) {
+        let w = label_box(&p.label, (0, 0)).2;
+        let mut chosen = None;
+        'search: for ring in 1..12 {
+            let d = 8 * ring;
+            let spots = [
+                (x + d, y - 7),
+                (x - d - w, y - 7),
+                (x - w / 2, y - d - 14),
+                (x - w / 2, y + d),
+                (x + d, y - d - 14),
+                (x + d, y + d),
+                (x - d - w, y - d - 14),
+                (x - d - w, y + d),
+            ];
+            for at in spots {
+                let b = label_box(&p.label, at);
+                let inside = b.0 >= frame.0 && b.1 >= frame.1 && b.2 <= frame.2 && b.3 <= frame.3;
+                if inside && !dots.iter().chain(&taken).any(|&o| overlaps(b, o)) {
+                    chosen = Some((at, (ring > 1).then_some((x, y))));
+                    break 'search;
+                }
+            }
+        }
+        // Nowhere free: beside the point, overlapping (still readable in the CSV).
+        let (at, anchor) = chosen.unwrap_or(((x + 8, y - 7), None));
+        taken.push(label_box(&p.label, at));
+        out.push((at, anchor));
     }
-    root.present()?;
-    Ok(())
+    out
 }

@@ -96,7 +96,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     }
     let scene = agree(
         comm,
-        Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string())),
+        Scene::load_with(&args.scene, &args.overrides).map_err(|e| CliError::input(e.to_string())),
     )?;
     if me == 0 {
         for w in &scene.warnings {

@@ -16,20 +16,24 @@ use std::process::Command;
 use std::time::Instant;
 
 /// One run of a study.
-struct Spec {
-    label: String,
-    ranks: usize,
-    args: Vec<String>,
-    /// The setting the study varies, as a number for plots (K, ranks).
-    x: f64,
+pub(crate) struct Spec {
+    pub label: String,
+    /// 1: a run on one node, started directly (no launcher).
+    pub ranks: usize,
+    pub threads: usize,
+    pub args: Vec<String>,
+    /// The setting the study varies, as a number for plots (K, ranks, threads).
+    pub x: f64,
     /// The series it belongs to in the figures.
-    series: String,
+    pub series: String,
 }
 
-struct Ran {
-    spec: Spec,
-    summary: Value,
-    lines: Vec<Value>,
+pub(crate) struct Ran {
+    pub spec: Spec,
+    /// The run's JSON summary.
+    pub summary: Value,
+    /// Its metrics lines (distributed runs).
+    pub lines: Vec<Value>,
 }
 
 /// The summary CSV's columns after the run's label, ranks and setting:
@@ -53,7 +57,12 @@ pub fn run(args: &StudyArgs) -> CliResult {
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("out/study-{}", args.name.name())));
-    if let Some(r) = args.ranks.iter().find(|&&r| r < 2) {
+    if let Some(r) = args
+        .ranks
+        .iter()
+        .find(|&&r| r < 2)
+        .filter(|_| args.name.distributed())
+    {
         return Err(CliError::input(format!(
             "--ranks {r}: a study compares distributed runs, of 2 ranks or more"
         )));
@@ -70,7 +79,11 @@ pub fn run(args: &StudyArgs) -> CliResult {
             args.scene.display()
         )));
     }
-    let specs = specs(args);
+    let specs = if args.name.distributed() {
+        specs(args)
+    } else {
+        crate::study_node::specs(args)?
+    };
     create_output_dir(&dir.join("runs"))?;
     let mut ran = Vec::new();
     for (k, spec) in specs.into_iter().enumerate() {
@@ -83,6 +96,9 @@ pub fn run(args: &StudyArgs) -> CliResult {
             start.elapsed().as_secs_f64()
         );
         ran.push(r);
+    }
+    if !args.name.distributed() {
+        return crate::study_node::report(args, &dir, &ran);
     }
     let csv = summary_csv(&ran);
     write(&dir.join("summary.csv"), &csv)?;
@@ -97,7 +113,7 @@ pub fn run(args: &StudyArgs) -> CliResult {
     Ok(())
 }
 
-fn write(path: &Path, text: &str) -> CliResult {
+pub(crate) fn write(path: &Path, text: &str) -> CliResult {
     std::fs::write(path, text)
         .map_err(|e| CliError::runtime(format!("{}: cannot write: {e}", path.display())))
 }
@@ -105,6 +121,7 @@ fn write(path: &Path, text: &str) -> CliResult {
 fn specs(args: &StudyArgs) -> Vec<Spec> {
     let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
     let ranks = args.ranks[0];
+    let threads = args.threads.first().copied().unwrap_or(1);
     match args.name {
         StudyName::RepartitionFrequency => args
             .every
@@ -116,8 +133,13 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
                     format!("every-{k}")
                 },
                 ranks,
+                threads,
                 args: s(&["--repartition-every", &k.to_string()]),
-                x: if k == 0 { args.steps as f64 } else { k as f64 },
+                x: if k == 0 {
+                    args.steps() as f64
+                } else {
+                    k as f64
+                },
                 series: "K".into(),
             })
             .collect(),
@@ -127,6 +149,7 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
             .map(|(i, p)| Spec {
                 label: p.to_string(),
                 ranks,
+                threads,
                 args: s(&[
                     "--partitioner",
                     p,
@@ -144,6 +167,7 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
                 ["blocking", "nonblocking"].map(|mode| Spec {
                     label: format!("{mode}-{r}"),
                     ranks: r,
+                    threads,
                     args: s(&[
                         "--exchange",
                         mode,
@@ -155,29 +179,44 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
                 })
             })
             .collect(),
+        StudyName::Scheduling | StudyName::Accuracy => unreachable!("runs on one node"),
     }
 }
 
-/// Runs one distributed run and reads its summary and metrics.
+/// Runs one run of a study (under the launcher when distributed, with
+/// metrics; on one node directly, keeping its output for its final state)
+/// and reads its summary and metrics.
 fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
     let metrics = dir.join("runs").join(format!("{}.jsonl", spec.label));
     let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
     let launcher = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
-    // SLURM's srun takes the task count as -n and needs no oversubscription.
-    let srun = launcher.ends_with("srun");
-    let extra = std::env::var("MPIRUN_ARGS")
-        .unwrap_or_else(|_| if srun { "" } else { "--oversubscribe" }.into());
-    let out = Command::new(&launcher)
-        .args(extra.split_whitespace())
-        .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])
-        .arg(exe)
-        .arg("run")
-        .arg(&args.scene)
-        .args(["--steps", &args.steps.to_string()])
-        .args(["--threads", &args.threads.to_string()])
-        .args(["--metrics-every", &args.metrics_every.to_string()])
-        .args(["--quiet", "--json", "--overwrite", "--metrics"])
-        .arg(&metrics)
+    let mut command = if spec.ranks == 1 {
+        let mut c = Command::new(&exe);
+        c.arg("run")
+            .arg(&args.scene)
+            .arg("--output")
+            .arg(dir.join("runs").join(&spec.label));
+        c
+    } else {
+        // SLURM's srun takes the task count as -n and needs no oversubscription.
+        let srun = launcher.ends_with("srun");
+        let extra = std::env::var("MPIRUN_ARGS")
+            .unwrap_or_else(|_| if srun { "" } else { "--oversubscribe" }.into());
+        let mut c = Command::new(&launcher);
+        c.args(extra.split_whitespace())
+            .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])
+            .arg(&exe)
+            .arg("run")
+            .arg(&args.scene)
+            .args(["--metrics-every", &args.metrics_every.to_string()])
+            .arg("--metrics")
+            .arg(&metrics);
+        c
+    };
+    let out = command
+        .args(["--steps", &args.steps().to_string()])
+        .args(["--threads", &spec.threads.to_string()])
+        .args(["--quiet", "--json", "--overwrite"])
         .args(&spec.args)
         .output()
         .map_err(|e| CliError::runtime(format!("cannot start {launcher}: {e}")))?;
@@ -196,6 +235,13 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
         .rev()
         .find_map(|l| serde_json::from_str(l).ok())
         .ok_or_else(|| CliError::runtime(format!("run {}: no summary", spec.label)))?;
+    if spec.ranks == 1 {
+        return Ok(Ran {
+            spec,
+            summary,
+            lines: Vec::new(),
+        });
+    }
     let text = std::fs::read_to_string(&metrics)
         .map_err(|e| CliError::runtime(format!("{}: {e}", metrics.display())))?;
     let lines = text
@@ -332,7 +378,8 @@ fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
             });
             let caption = format!(
                 "{scene}, {} ranks: ms per step by section against K (never at K = {})",
-                args.ranks[0], args.steps
+                args.ranks[0],
+                args.steps()
             );
             lines(
                 &dir.join("sections.svg"),
@@ -402,6 +449,7 @@ fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
             )
             .map_err(plot_err)?;
         }
+        StudyName::Scheduling | StudyName::Accuracy => unreachable!("runs on one node"),
     }
     Ok(())
 }

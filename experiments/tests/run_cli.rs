@@ -119,6 +119,33 @@ fn a_bad_scene_is_an_error_with_file_and_line() {
 }
 
 #[test]
+fn set_overrides_scene_values_and_refuses_bad_ones() {
+    let drop = scene("drop.toml");
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--steps",
+        "1",
+        "--quiet",
+        "--set",
+        "simulation.dt=2.5e-5",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("dt 2.5e-5 s"), "{err}");
+    // The overridden value is checked like the file's own.
+    for (bad, says) in [
+        ("kernel.schedule=sometimes", "sometimes"),
+        ("kernel.tolerance=0.5", "kernel.tolerance must be between"),
+        ("simulation", "expected section.key=value"),
+        ("particles.x=1", "not a section"),
+    ] {
+        let (code, _, err) = tridem(&["run", &drop, "--steps", "1", "--set", bad]);
+        assert_eq!(code, 2, "{bad}: {err}");
+        assert!(err.contains("--set") && err.contains(says), "{bad}: {err}");
+    }
+}
+
+#[test]
 fn shipped_scenes_parse() {
     let dir = std::path::PathBuf::from(scene(""));
     let mut names: Vec<_> = std::fs::read_dir(&dir)

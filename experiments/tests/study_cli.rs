@@ -55,12 +55,99 @@ fn rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
         .collect()
 }
 
+/// The figure `name` (SVG) draws something, and its PNG twin is a PNG.
 fn figure(dir: &Path, name: &str) {
     let svg = std::fs::read_to_string(dir.join(name)).unwrap();
     assert!(
-        svg.contains("<svg") && svg.contains("<polyline"),
-        "{name} draws no line"
+        svg.contains("<svg") && (svg.contains("<polyline") || svg.contains("<circle")),
+        "{name} draws no line and no point"
     );
+    let png = std::fs::read(dir.join(name).with_extension("png")).unwrap();
+    assert!(
+        png.starts_with(b"\x89PNG\r\n\x1a\n") && png.len() > 5_000,
+        "{name}: no PNG beside it"
+    );
+}
+
+/// A one-node study's summary as rows of named columns.
+fn node_rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(dir.join("summary.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    for column in [
+        "label",
+        "threads",
+        "seconds_per_step",
+        "narrow_phase_idle_fraction",
+        "fallback_rate",
+        "task_fallback_least",
+        "task_fallback_most",
+        "rms_deviation_m",
+        "identical_to_reference",
+    ] {
+        assert!(head.iter().any(|h| h == column), "no column {column}");
+    }
+    lines
+        .map(|l| {
+            head.iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
+        .collect()
+}
+
+fn num(row: &std::collections::HashMap<String, String>, column: &str) -> f64 {
+    row[column].parse().unwrap()
+}
+
+#[test]
+fn scheduling_study_finds_the_answers_independent_of_threads_and_schedule() {
+    let (dir, _) = study("scheduling", &["--threads", "1,2"]);
+    let rows = node_rows(&dir);
+    assert_eq!(
+        rows.len(),
+        12,
+        "3 schedules x 2 fallbacks x 2 thread counts"
+    );
+    for r in &rows {
+        assert!(num(r, "seconds_per_step") > 0.0);
+        let idle = num(r, "narrow_phase_idle_fraction");
+        assert!((0.0..1.0).contains(&idle), "{idle}");
+        assert!(num(r, "task_fallback_most") >= num(r, "task_fallback_least"));
+        // The hybrid kernel's answers are exact: the final state at any
+        // thread count and schedule is the one-thread static run's, bit for bit.
+        assert_eq!(r["identical_to_reference"], "true", "{}", r["label"]);
+    }
+    // Only the pairs Newton failed on fall back, whatever the batch
+    // around them: fewer fallbacks than the whole batch's.
+    let rate = |label: &str| {
+        num(
+            rows.iter().find(|r| r["label"] == label).unwrap(),
+            "fallback_rate",
+        )
+    };
+    assert!(rate("static-failed-pairs-1") < rate("static-whole-batch-1"));
+    for f in ["step-time.svg", "idle.svg", "task-fallback.svg"] {
+        figure(&dir, f);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn accuracy_study_measures_deviation_from_brute_force() {
+    let (dir, out) = study("accuracy", &[]);
+    let rows = node_rows(&dir);
+    let row = |label: &str| rows.iter().find(|r| r["label"] == label).unwrap();
+    assert_eq!(row("brute")["identical_to_reference"], "true");
+    assert_eq!(num(row("brute"), "rms_deviation_m"), 0.0);
+    // One Newton iteration without the exact finish misplaces contacts:
+    // the trajectories part from brute force's.
+    assert!(num(row("penalty-1it"), "rms_deviation_m") > 0.0, "{out}");
+    // The hybrid certifies or falls back: brute force's answers.
+    assert_eq!(row("hybrid-failed-pairs")["identical_to_reference"], "true");
+    figure(&dir, "accuracy.svg");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn metrics(dir: &Path, label: &str) -> Vec<serde_json::Value> {

@@ -101,6 +101,13 @@ pub struct DetectionStats {
     /// Broad phases run (one per pass without a skin; with one, each
     /// rebuild of the neighbour list).
     pub broad_phases: u64,
+    /// The fallback rate of the pass's least and most falling-back task
+    /// (fallback pairs over the task's triangle pairs), summed over passes
+    /// with tasks: how unevenly the kernel's fallbacks land on threads.
+    pub task_fallback_min: f64,
+    pub task_fallback_max: f64,
+    /// Passes whose tasks examined triangle pairs (the count of the sums above).
+    pub passes_with_pairs: u64,
 }
 
 impl std::ops::AddAssign for DetectionStats {
@@ -111,6 +118,9 @@ impl std::ops::AddAssign for DetectionStats {
         self.contacts += o.contacts;
         self.deep_contacts += o.deep_contacts;
         self.broad_phases += o.broad_phases;
+        self.task_fallback_min += o.task_fallback_min;
+        self.task_fallback_max += o.task_fallback_max;
+        self.passes_with_pairs += o.passes_with_pairs;
     }
 }
 
@@ -413,13 +423,24 @@ fn run_tasks(
     times.narrow_phase_busy = 0.0;
     let mut stats = DetectionStats::default();
     let mut counts = Counts::default();
+    let (mut least, mut most) = (f64::INFINITY, f64::NEG_INFINITY);
     for task in &tasks[..n_tasks] {
         times.narrow_phase_busy += task.busy;
         stats.body_pairs += task.body_pairs as u64;
         stats.triangle_pairs += task.owners.len() as u64;
         counts = counts + task.counts;
+        if !task.owners.is_empty() {
+            let rate = task.counts.fallback_pairs as f64 / task.owners.len() as f64;
+            least = least.min(rate);
+            most = most.max(rate);
+        }
     }
     stats.fallback_pairs = counts.fallback_pairs as u64;
+    if most >= least {
+        stats.task_fallback_min = least;
+        stats.task_fallback_max = most;
+        stats.passes_with_pairs = 1;
+    }
     (stats, n_tasks)
 }
 

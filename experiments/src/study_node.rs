@@ -1,0 +1,355 @@
+//! The studies that run on one node, started directly: thread scheduling
+//! and what the kernel's accuracy costs. Each run keeps its output
+//! (`DIR/runs/LABEL/`), whose final checkpoint gives the state compared
+//! with the study's reference run.
+
+use crate::checkpoint_file;
+use crate::cli::{StudyArgs, StudyName};
+use crate::error::{CliError, CliResult};
+use crate::plot::{labelled_points, lines, Labelled, Series};
+use crate::study_cmd::{write, Ran, Spec};
+use dem::scene::Scene;
+use std::fmt::Write as _;
+use std::path::Path;
+
+const SCHEDULES: [&str; 3] = ["static", "dynamic", "guided"];
+/// The two fallbacks of the hybrid kernel: the published one (the whole
+/// batch of a pair Newton did not certify) and only the failed pairs.
+const FALLBACKS: [(&str, &str); 2] = [("whole-batch", "false"), ("failed-pairs", "true")];
+
+pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
+    let set = |v: &[String]| {
+        v.iter()
+            .flat_map(|o| ["--set".to_string(), o.clone()])
+            .collect()
+    };
+    Ok(match args.name {
+        StudyName::Scheduling => {
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let threads = if args.threads.is_empty() {
+                (1..=cores).collect()
+            } else {
+                args.threads.clone()
+            };
+            let mut specs = Vec::new();
+            for (fallback, failed_pairs) in FALLBACKS {
+                for schedule in SCHEDULES {
+                    for &t in &threads {
+                        specs.push(Spec {
+                            label: format!("{schedule}-{fallback}-{t}"),
+                            ranks: 1,
+                            threads: t,
+                            args: set(&[
+                                "kernel.method=hybrid".into(),
+                                format!("kernel.schedule={schedule}"),
+                                format!("kernel.fallback_failed_pairs={failed_pairs}"),
+                            ]),
+                            x: t as f64,
+                            series: format!("{schedule}, {fallback}"),
+                        });
+                    }
+                }
+            }
+            specs
+        }
+        StudyName::Accuracy => {
+            let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+            let threads = args.threads.first().copied().unwrap_or(1);
+            accuracy_settings(scene.dt)
+                .into_iter()
+                .map(|(label, sets)| Spec {
+                    label: label.to_string(),
+                    ranks: 1,
+                    threads,
+                    args: set(&sets),
+                    x: 0.0,
+                    series: label.to_string(),
+                })
+                .collect()
+        }
+        _ => unreachable!("distributed studies"),
+    })
+}
+
+/// The kernel settings of the accuracy study, the reference first. The
+/// second run is the reference with its time step changed by 1e-14: how far
+/// trajectories part from a change at the level of rounding alone, the floor
+/// under which no kernel's error can be told from chaos.
+fn accuracy_settings(dt: f64) -> Vec<(&'static str, Vec<String>)> {
+    let v = |x: &[&str]| x.iter().map(|s| format!("kernel.{s}")).collect::<Vec<_>>();
+    let mut floor = v(&["method=brute"]);
+    floor.push(format!("simulation.dt={:?}", dt * (1.0 + 1e-14)));
+    vec![
+        ("brute", v(&["method=brute"])),
+        ("brute-dt+1e-14", floor),
+        (
+            "penalty-1it",
+            v(&["method=penalty", "iterations=1", "finish_rounds=0"]),
+        ),
+        (
+            "penalty-2it",
+            v(&["method=penalty", "iterations=2", "finish_rounds=0"]),
+        ),
+        (
+            "penalty-4it",
+            v(&["method=penalty", "iterations=4", "finish_rounds=0"]),
+        ),
+        (
+            "penalty-4it-finish",
+            v(&["method=penalty", "iterations=4", "finish_rounds=1"]),
+        ),
+        (
+            "hybrid-whole-batch",
+            v(&["method=hybrid", "fallback_failed_pairs=false"]),
+        ),
+        (
+            "hybrid-failed-pairs",
+            v(&["method=hybrid", "fallback_failed_pairs=true"]),
+        ),
+        (
+            "hybrid-batch4",
+            v(&["method=hybrid", "fallback_failed_pairs=true", "batch=4"]),
+        ),
+        (
+            "hybrid-batch16",
+            v(&["method=hybrid", "fallback_failed_pairs=true", "batch=16"]),
+        ),
+        (
+            "hybrid-2it",
+            v(&[
+                "method=hybrid",
+                "fallback_failed_pairs=true",
+                "iterations=2",
+            ]),
+        ),
+        (
+            "hybrid-tol1e-8",
+            v(&[
+                "method=hybrid",
+                "fallback_failed_pairs=true",
+                "tolerance=1e-8",
+            ]),
+        ),
+        (
+            "hybrid-tol1e-4",
+            v(&[
+                "method=hybrid",
+                "fallback_failed_pairs=true",
+                "tolerance=1e-4",
+            ]),
+        ),
+    ]
+}
+
+/// What one run measured, against the study's reference run.
+struct Row<'a> {
+    ran: &'a Ran,
+    seconds_per_step: f64,
+    narrow_idle: f64,
+    /// Root mean square and largest distance of the particles' final
+    /// positions from the reference run's.
+    rms: f64,
+    max: f64,
+    identical: bool,
+}
+
+fn rows<'a>(
+    args: &StudyArgs,
+    dir: &Path,
+    ran: &'a [Ran],
+    reference: &dyn Fn(&Ran) -> &'a Ran,
+) -> CliResult<Vec<Row<'a>>> {
+    let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+    let moves: Vec<bool> = scene.world.bodies.iter().map(|b| !b.is_static()).collect();
+    let state = |r: &Ran| {
+        checkpoint_file::read(&dir.join("runs").join(&r.spec.label).join("checkpoint.h5"))
+    };
+    ran.iter()
+        .map(|r| {
+            let (a, b) = (state(r)?, state(reference(r))?);
+            let moving: Vec<f64> = a
+                .bodies
+                .iter()
+                .zip(&b.bodies)
+                .zip(&moves)
+                .filter(|(_, &m)| m)
+                .map(|((x, y), _)| (x.x - y.x).length())
+                .collect();
+            let n = moving.len().max(1) as f64;
+            let s = &r.summary;
+            let steps = s["steps"].as_f64().unwrap_or(1.0).max(1.0);
+            let narrow = s["section_seconds"]["narrow_phase"].as_f64().unwrap_or(0.0);
+            let busy = s["narrow_phase_busy_thread_seconds"]
+                .as_f64()
+                .unwrap_or(0.0);
+            let threads = s["threads"].as_f64().unwrap_or(1.0);
+            Ok(Row {
+                ran: r,
+                seconds_per_step: s["stepping_seconds"].as_f64().unwrap_or(0.0) / steps,
+                narrow_idle: if narrow > 0.0 {
+                    1.0 - busy / (threads * narrow)
+                } else {
+                    0.0
+                },
+                rms: (moving.iter().map(|d| d * d).sum::<f64>() / n).sqrt(),
+                max: moving.iter().copied().fold(0.0, f64::max),
+                identical: a.bodies == b.bodies,
+            })
+        })
+        .collect()
+}
+
+pub(crate) fn report(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
+    let first = &ran[0];
+    let rows = match args.name {
+        // Each schedule against one thread of the same fallback: are the
+        // answers independent of the threads?
+        StudyName::Scheduling => rows(args, dir, ran, &|r: &Ran| {
+            let fallback = r.spec.series.split(", ").nth(1).unwrap_or("");
+            ran.iter()
+                .find(|q| q.spec.series.ends_with(fallback))
+                .unwrap_or(first)
+        })?,
+        _ => rows(args, dir, ran, &|_: &Ran| first)?,
+    };
+    write(&dir.join("summary.csv"), &csv(&rows))?;
+    let plot_err = |e: Box<dyn std::error::Error>| CliError::runtime(format!("plot: {e}"));
+    let scene = args
+        .scene
+        .file_name()
+        .map_or(String::new(), |n| n.to_string_lossy().into_owned());
+    match args.name {
+        StudyName::Scheduling => scheduling_figures(dir, &scene, &rows).map_err(plot_err)?,
+        _ => {
+            let reference = rows[0].seconds_per_step;
+            let points: Vec<Labelled> = rows
+                .iter()
+                .skip(1)
+                .map(|r| Labelled {
+                    label: r.ran.spec.label.clone(),
+                    x: 1e3 * r.seconds_per_step,
+                    y: r.rms,
+                })
+                .collect();
+            let caption = format!(
+                "{scene}, {} steps: deviation from brute force ({:.2} ms per step) against cost",
+                args.steps(),
+                1e3 * reference
+            );
+            labelled_points(
+                &dir.join("accuracy.svg"),
+                &caption,
+                (
+                    "ms per step",
+                    "RMS distance of final positions from the brute-force run (m)",
+                ),
+                &points,
+                "on the bottom line: identical to brute force",
+            )
+            .map_err(plot_err)?;
+        }
+    }
+    print!("{}", table(&rows));
+    println!("data and figures in {}", dir.display());
+    Ok(())
+}
+
+fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "label,threads,seconds_per_step,narrow_phase_idle_fraction,fallback_rate,\
+         task_fallback_least,task_fallback_most,contacts,rms_deviation_m,max_deviation_m,identical_to_reference\n",
+    );
+    for r in rows {
+        let j = &r.ran.summary;
+        writeln!(
+            s,
+            "{},{},{:e},{},{},{},{},{},{:e},{:e},{}",
+            r.ran.spec.label,
+            r.ran.spec.threads,
+            r.seconds_per_step,
+            r.narrow_idle,
+            j["fallback_rate"].as_f64().unwrap_or(0.0),
+            j["task_fallback_rate"]["least"].as_f64().unwrap_or(0.0),
+            j["task_fallback_rate"]["most"].as_f64().unwrap_or(0.0),
+            j["contacts"].as_u64().unwrap_or(0),
+            r.rms,
+            r.max,
+            r.identical,
+        )
+        .expect("string");
+    }
+    s
+}
+
+fn scheduling_figures(
+    dir: &Path,
+    scene: &str,
+    rows: &[Row],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let mut names: Vec<&str> = rows.iter().map(|r| r.ran.spec.series.as_str()).collect();
+    names.dedup();
+    let by = |value: &dyn Fn(&Row) -> f64| -> Vec<Series> {
+        names
+            .iter()
+            .map(|n| Series {
+                name: n.to_string(),
+                points: rows
+                    .iter()
+                    .filter(|r| r.ran.spec.series == *n)
+                    .map(|r| (r.ran.spec.x, value(r)))
+                    .collect(),
+            })
+            .collect()
+    };
+    lines(
+        &dir.join("step-time.svg"),
+        &format!("{scene}: ms per step against threads"),
+        ("threads", "ms per step"),
+        &by(&|r| 1e3 * r.seconds_per_step),
+        false,
+    )?;
+    lines(
+        &dir.join("idle.svg"),
+        &format!("{scene}: narrow phase, share of thread time spent idle"),
+        ("threads", "idle / (threads x narrow-phase time)"),
+        &by(&|r| r.narrow_idle),
+        false,
+    )?;
+    lines(
+        &dir.join("task-fallback.svg"),
+        &format!("{scene}: fallback rate of the most minus the least falling-back task"),
+        (
+            "threads",
+            "fallback-rate spread over tasks (mean over passes)",
+        ),
+        &by(&|r| {
+            let t = &r.ran.summary["task_fallback_rate"];
+            t["most"].as_f64().unwrap_or(0.0) - t["least"].as_f64().unwrap_or(0.0)
+        }),
+        false,
+    )?;
+    Ok(())
+}
+
+fn table(rows: &[Row]) -> String {
+    let mut s = format!(
+        "{:<26} {:>7} {:>9} {:>7} {:>9} {:>10} {:>10} {:>9}\n",
+        "run", "threads", "ms/step", "idle", "fallback", "rms dev m", "max dev m", "identical"
+    );
+    for r in rows {
+        writeln!(
+            s,
+            "{:<26} {:>7} {:>9.3} {:>6.1}% {:>8.2}% {:>10.2e} {:>10.2e} {:>9}",
+            r.ran.spec.label,
+            r.ran.spec.threads,
+            1e3 * r.seconds_per_step,
+            100.0 * r.narrow_idle,
+            100.0 * r.ran.summary["fallback_rate"].as_f64().unwrap_or(0.0),
+            r.rms,
+            r.max,
+            if r.identical { "yes" } else { "no" },
+        )
+        .expect("string");
+    }
+    s
+}
