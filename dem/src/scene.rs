@@ -111,6 +111,10 @@ struct SimulationSpec {
     /// Run with a step above the stable one (with a warning) instead of refusing.
     #[serde(default)]
     allow_unstable_dt: bool,
+    /// Start with bodies overlapping, and go on when contacts stay deeper
+    /// than the halos, instead of refusing and stopping.
+    #[serde(default)]
+    allow_deep_contacts: bool,
 }
 
 fn default_output_every() -> u64 {
@@ -187,7 +191,10 @@ const MAX_ITERATIONS: usize = 255;
 /// A box subdivided 6 times has 49,152 triangles: enough for any test of
 /// mesh independence, and a typo cannot ask for billions.
 const MAX_SUBDIVIDE: usize = 6;
-const MAX_FINISH_ROUNDS: usize = 8;
+pub const MAX_FINISH_ROUNDS: usize = 8;
+/// A convex hull of a million triangles is finer than any particle model
+/// needs; its hull computation alone would take minutes.
+const MAX_HULL_TRIANGLES: usize = 1_000_000;
 
 fn default_grain() -> usize {
     Threading::default().grain
@@ -343,6 +350,30 @@ pub struct Scene {
     /// Set when the step exceeds the stable one and the scene allowed it.
     pub warnings: Vec<String>,
     pub parallel: Parallel,
+    /// Per body, the line of the scene file that placed it (for messages).
+    pub body_lines: Vec<usize>,
+    /// The scene allows bodies to overlap at the start and contacts to stay
+    /// deeper than the halos (`simulation.allow_deep_contacts`).
+    pub allow_deep_contacts: bool,
+}
+
+/// Steps at most, however long `end_time / dt` is: a typo in either cannot
+/// ask for a run of centuries.
+pub const MAX_STEPS: u64 = 1 << 40;
+
+/// Particles a scene may place at most: each costs its triangles and their
+/// per-thread copies; beyond this a scene asks for more than any machine of
+/// ours holds.
+pub const MAX_PARTICLES: usize = 10_000_000;
+
+impl Scene {
+    /// Where body `i` comes from, for messages: "body 3 (line 31)".
+    pub fn body_name(&self, i: usize) -> String {
+        match self.body_lines.get(i) {
+            Some(&line) if line > 0 => format!("body {i} (line {line})"),
+            _ => format!("body {i}"),
+        }
+    }
 }
 
 struct Ctx<'a> {
@@ -426,8 +457,63 @@ impl Scene {
             line: e.span().map_or(0, |s| ctx.line_of(s.start)),
             cause: e.message().to_string(),
         })?;
+        refuse_non_finite(&ctx)?;
         build(&ctx, spec)
     }
+}
+
+/// No number of a scene may be NaN or infinite (TOML writes them `nan`,
+/// `inf`): refused where written, naming the key, before anything is built
+/// from it. The text has parsed as TOML, so outside strings and comments
+/// these words can only be values.
+fn refuse_non_finite(ctx: &Ctx) -> Result<(), SceneError> {
+    let mut offset = 0;
+    let mut key = String::new();
+    for line in ctx.text.split_inclusive('\n') {
+        let code = strip_strings_and_comment(line);
+        if let Some((k, _)) = code.split_once('=') {
+            if !k.trim_start().starts_with('[') {
+                key = k.trim().to_string();
+            }
+        }
+        let value = code.split_once('=').map_or(code.as_str(), |(_, v)| v);
+        let bad = value
+            .split(|c: char| c.is_whitespace() || ",[]{}=".contains(c))
+            .find(|w| matches!(w.trim_start_matches(['+', '-']), "nan" | "inf"));
+        if let Some(word) = bad {
+            return ctx.err(
+                offset..offset + line.len(),
+                format!("{key} = {word}: every number of a scene must be finite"),
+            );
+        }
+        offset += line.len();
+    }
+    Ok(())
+}
+
+/// A line of TOML with its strings blanked and its comment cut.
+fn strip_strings_and_comment(line: &str) -> String {
+    let mut out = String::with_capacity(line.len());
+    let mut quote: Option<char> = None;
+    let mut escaped = false;
+    for c in line.chars() {
+        match quote {
+            Some(q) => {
+                if c == q && !escaped {
+                    quote = None;
+                }
+                escaped = c == '\\' && !escaped && q == '"';
+                out.push(' ');
+            }
+            None if c == '"' || c == '\'' => {
+                quote = Some(c);
+                out.push(' ');
+            }
+            None if c == '#' => break,
+            None => out.push(c),
+        }
+    }
+    out
 }
 
 /// Sets one `section.key=value` of `--set` in a scene's table.
@@ -482,6 +568,23 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
     let end_time = positive(ctx, sim_span.clone(), "simulation.end_time", sim.end_time)?;
     if sim.output_every == 0 {
         return ctx.err(sim_span, "simulation.output_every must be at least 1");
+    }
+    if end_time < dt {
+        return ctx.err(
+            sim_span,
+            format!(
+                "simulation.end_time ({end_time:e} s) is shorter than one step (dt = {dt:e} s)"
+            ),
+        );
+    }
+    if end_time / dt > MAX_STEPS as f64 {
+        return ctx.err(
+            sim_span,
+            format!(
+                "simulation.end_time / dt = {:.3e} steps, more than the {MAX_STEPS} a run may take",
+                end_time / dt
+            ),
+        );
     }
     let eff_span = spec.effects.span();
     let e = spec.effects.into_inner();
@@ -599,6 +702,8 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
         materials: materials.clone(),
         ..World::default()
     };
+    let mut body_lines = Vec::new();
+    let mut warnings = Vec::new();
     for p in &spec.particles {
         let span = p.span();
         let p = p.get_ref();
@@ -617,7 +722,32 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             .iter()
             .map(|v| v.length())
             .fold(0.0, f64::max);
-        let positions = placements(ctx, span.clone(), &p.placement, radius)?;
+        let thickness = smallest_extent(&local);
+        let halo = materials[mat].halo.unwrap_or(0.0);
+        if halo > thickness / 2.0 {
+            return ctx.err(
+                span,
+                format!(
+                    "material `{}`: the halo ({halo:e} m) is more than half the particle's \
+                     smallest extent ({thickness:e} m): contacts would act from further away \
+                     than the particle is thick",
+                    p.material
+                ),
+            );
+        }
+        let positions = placements(
+            ctx,
+            span.clone(),
+            &p.placement,
+            radius,
+            local.triangles.len(),
+        )?;
+        if world.bodies.len() + positions.len() > MAX_PARTICLES {
+            return ctx.err(
+                span,
+                format!("the scene places more than the {MAX_PARTICLES} particles a scene may"),
+            );
+        }
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed);
         for pos in positions {
             let mut q = match p.orientation.as_deref() {
@@ -636,7 +766,7 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             let omega = DVec3::from_array(p.angular_velocity);
             let inertia_world =
                 DMat3::from_quat(q) * props.inertia * DMat3::from_quat(q).transpose();
-            world.bodies.push(Body {
+            let body = Body {
                 shape,
                 material: mat,
                 x: DVec3::from_array(pos),
@@ -647,7 +777,18 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
                 mass: props.mass,
                 inv_inertia_body: inv_inertia,
                 inertia_body: props.inertia,
-            });
+            };
+            check_motion(
+                ctx,
+                span.clone(),
+                &body,
+                omega,
+                dt,
+                thickness,
+                &mut warnings,
+            )?;
+            world.bodies.push(body);
+            body_lines.push(ctx.line_of(span.start));
         }
     }
     for o in &spec.obstacles {
@@ -671,6 +812,7 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             inv_inertia_body: DMat3::ZERO,
             inertia_body: DMat3::ZERO,
         });
+        body_lines.push(ctx.line_of(span.start));
     }
     if world.dynamic_count() == 0 {
         return ctx.err(0..0, "the scene has no particles");
@@ -763,7 +905,6 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
     // Stable step: ω = √(k/m*) for the stiffest pair of materials that can meet
     // (springs in series) and the lightest reduced mass (half the lightest
     // particle), h = (2/ω)(√(1 + ζ²) − ζ) with the largest damping ratio.
-    let mut warnings = Vec::new();
     let stable_dt = if effects.contact {
         let mut used_by_particles = vec![false; materials.len()];
         let mut used = vec![false; materials.len()];
@@ -852,7 +993,56 @@ fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
         kernel,
         warnings,
         parallel,
+        body_lines,
+        allow_deep_contacts: sim.allow_deep_contacts,
     })
+}
+
+/// The smallest side of a shape's box in its own frame: how thick it is.
+fn smallest_extent(mesh: &TriMesh) -> f64 {
+    let (lo, hi) = mesh.vertices.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &v| (lo.min(v), hi.max(v)),
+    );
+    (hi - lo).min_element()
+}
+
+/// A particle's initial motion must be a number the integrator can carry:
+/// its kinetic energy finite (a velocity of 1e200 m/s squares to infinity).
+/// One that crosses half its own thickness in a step can pass through a
+/// wall between two detections: warned.
+fn check_motion(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    b: &Body,
+    omega: DVec3,
+    dt: f64,
+    thickness: f64,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let energy = 0.5 * b.mass * b.v.length_squared() + 0.5 * omega.dot(b.l);
+    if !(energy.is_finite() && b.l.is_finite() && b.q.is_finite() && b.x.is_finite()) {
+        return ctx.err(
+            span,
+            format!(
+                "particle: velocity [{:e}, {:e}, {:e}] m/s and angular velocity \
+                 [{:e}, {:e}, {:e}] rad/s give a kinetic energy of {energy:e} J, \
+                 which is not a finite number",
+                b.v.x, b.v.y, b.v.z, omega.x, omega.y, omega.z
+            ),
+        );
+    }
+    let travel = b.v.length() * dt;
+    if travel > thickness / 2.0 {
+        warnings.push(format!(
+            "{}:{}: a particle moves {travel:e} m in one step, more than half its thickness \
+             ({thickness:e} m): it can pass through walls and other particles between two \
+             detections; lower dt or the speed",
+            ctx.file,
+            ctx.line_of(span.start)
+        ));
+    }
+    Ok(())
 }
 
 fn make_shape(
@@ -871,6 +1061,16 @@ fn make_shape(
                 return ctx.err(
                     span,
                     format!("a hull needs an even number of triangles >= 4, got {triangles}"),
+                );
+            }
+            if *triangles > MAX_HULL_TRIANGLES {
+                return ctx.err(
+                    span,
+                    format!(
+                        "a hull of {triangles} triangles is more than the {MAX_HULL_TRIANGLES} \
+                         a scene may ask for (about {:.0} GB per particle)",
+                        *triangles as f64 * BYTES_PER_TRIANGLE / 1e9
+                    ),
                 );
             }
             Ok(sphere_hull(*triangles, r, *seed))
@@ -906,12 +1106,32 @@ fn make_shape(
     }
 }
 
+/// Bytes a particle's triangle takes in a run, about: the world-space copy
+/// and its box, per-thread copies, the broad phase's entries, the output.
+const BYTES_PER_TRIANGLE: f64 = 400.0;
+
 fn placements(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
     p: &PlacementSpec,
     radius: f64,
+    triangles: usize,
 ) -> Result<Vec<[f64; 3]>, SceneError> {
+    let count = match p {
+        PlacementSpec::Single { .. } => 1.0,
+        PlacementSpec::Lattice { count, .. } => count.iter().map(|&c| c as f64).product(),
+        PlacementSpec::Random { count, .. } => *count as f64,
+    };
+    if count > MAX_PARTICLES as f64 {
+        return ctx.err(
+            span,
+            format!(
+                "{count:e} particles is more than the {MAX_PARTICLES} a scene may place \
+                 (at {triangles} triangles each they would need about {:.0} GB)",
+                count * triangles as f64 * BYTES_PER_TRIANGLE / 1e9
+            ),
+        );
+    }
     match p {
         PlacementSpec::Single { position } => Ok(vec![*position]),
         PlacementSpec::Lattice {

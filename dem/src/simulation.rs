@@ -415,4 +415,27 @@ impl Simulation {
     pub fn last_stats(&self) -> StepStats {
         self.ctx.stats
     }
+
+    /// Body pairs whose surfaces cross in the last force evaluation (a
+    /// contact deeper than the two halos), each with its deepest crossing
+    /// (m), in pair order: overlapping bodies at the start, or a contact
+    /// that failed to hold the bodies apart.
+    pub fn crossed_pairs(&self) -> Vec<(usize, usize, f64)> {
+        let halo = |i: usize| {
+            let b = &self.world.bodies[i];
+            self.world.materials[b.material].halo.unwrap_or(0.0)
+        };
+        let mut out: Vec<(usize, usize, f64)> = Vec::new();
+        for c in &self.ctx.contacts {
+            let over = c.depth - (halo(c.a) + halo(c.b));
+            if over <= 0.0 {
+                continue;
+            }
+            match out.last_mut() {
+                Some(last) if (last.0, last.1) == (c.a, c.b) => last.2 = last.2.max(over),
+                _ => out.push((c.a, c.b, over)),
+            }
+        }
+        out
+    }
 }

@@ -108,6 +108,9 @@ pub struct DistributedSimulation<'c> {
     /// How far any body may have moved since the lists were drawn.
     travel: f64,
     steps_run: u64,
+    /// Steps in a row, up to the last one, in which some rank found a
+    /// contact deeper than the halos.
+    deep_steps: u64,
     metrics: StepMetrics,
     /// Counters summed over this rank's steps (contacts: those it books).
     pub totals: StepStats,
@@ -191,6 +194,7 @@ impl<'c> DistributedSimulation<'c> {
             lists_stale: true,
             travel: 0.0,
             steps_run: 0,
+            deep_steps: 0,
             metrics: StepMetrics::default(),
             totals: StepStats::default(),
             found: Vec::new(),
@@ -200,6 +204,12 @@ impl<'c> DistributedSimulation<'c> {
         };
         s.repartition()?;
         Ok(s)
+    }
+
+    /// Steps in a row, up to the one before the last, in which some rank
+    /// found a contact deeper than the halos (the same on every rank).
+    pub fn deep_steps_in_a_row(&self) -> u64 {
+        self.deep_steps
     }
 
     /// The particles this rank owns, in increasing id.
@@ -421,8 +431,9 @@ impl<'c> DistributedSimulation<'c> {
             moved,
             f64::from(u8::from(stop)),
             f64::from(u8::from(!finite)),
+            f64::from(u8::from(self.ctx.stats.detection.deep_contacts > 0)),
         ];
-        let mut global = [0.0; 3];
+        let mut global = [0.0; 4];
         self.comm
             .all_reduce_into(&local[..], &mut global[..], SystemOperation::max());
         let mut wait = waited.elapsed().as_secs_f64();
@@ -434,6 +445,11 @@ impl<'c> DistributedSimulation<'c> {
                 self.world.time + h
             ));
         }
+        self.deep_steps = if global[3] > 0.0 {
+            self.deep_steps + 1
+        } else {
+            0
+        };
         // NaN (a body's state gone bad) redraws too.
         self.travel += global[0];
         let within = self.travel <= 0.5 * self.settings.skin;

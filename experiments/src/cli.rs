@@ -1,5 +1,6 @@
 //! Command-line interface: one subcommand per experiment.
 
+use crate::bounds;
 use crate::stats::Statistic;
 use clap::{Args, Parser, Subcommand};
 use dem::distance::{Method, PenaltyParams, Schedule};
@@ -89,25 +90,25 @@ pub struct StudyArgs {
     pub scene: PathBuf,
     /// Ranks (the exchange study runs each count; the other distributed
     /// studies the first; scheduling and accuracy run on one node).
-    #[arg(long, value_delimiter = ',', default_value = "2")]
+    #[arg(long, value_delimiter = ',', default_value = "2", value_parser = bounds::ranks)]
     pub ranks: Vec<usize>,
     /// Threads per rank (default 1); the scheduling study runs each count
     /// given (default 1 up to all cores).
-    #[arg(long, value_delimiter = ',', value_parser = at_least_one)]
+    #[arg(long, value_delimiter = ',', value_parser = bounds::threads)]
     pub threads: Vec<usize>,
     /// Steps per run (default 3000, in which the silo empties for 0.15 s;
     /// accuracy: 500, before the trajectories of every setting have parted
     /// chaotically).
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::steps)]
     pub steps: Option<u64>,
     /// The repartitioning intervals K of repartition-frequency (0: never).
-    #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0")]
+    #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0", value_parser = bounds::steps)]
     pub every: Vec<u64>,
     /// Repartition every K steps in the other studies.
     #[arg(long, default_value_t = 20)]
     pub repartition_every: u64,
     /// A metrics line every N steps.
-    #[arg(long, default_value_t = 10, value_parser = at_least_one_u64)]
+    #[arg(long, default_value_t = 10, value_parser = bounds::every)]
     pub metrics_every: u64,
     /// Where the runs' metrics, summary.csv and the figures go (default: out/study-NAME).
     #[arg(long)]
@@ -140,10 +141,10 @@ pub struct ScalingArgs {
     #[arg(long)]
     pub steps: Option<u64>,
     /// Thread counts to compare, the first being the reference.
-    #[arg(long, value_delimiter = ',', default_value = "1,2")]
+    #[arg(long, value_delimiter = ',', default_value = "1,2", value_parser = bounds::threads)]
     pub threads: Vec<usize>,
     /// Runs per thread count (rounds alternate between thread counts).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = bounds::repeat)]
     pub repeat: usize,
     /// What each time is: the median of the runs, or the minimum (on a
     /// machine whose speed swings, the least disturbed run). Speed-ups are
@@ -155,7 +156,7 @@ pub struct ScalingArgs {
     /// on its own right after each run, so the report shows what speed-up
     /// the machine delivered to plain parallel work in the same minutes (0:
     /// no reference).
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, default_value_t = 200_000, value_parser = bounds::steps_usize)]
     pub reference_pairs: usize,
     /// Print one JSON object per thread count instead of a table.
     #[arg(long)]
@@ -167,7 +168,7 @@ pub struct RunArgs {
     /// The scene file.
     pub scene: PathBuf,
     /// Steps to run (default: end_time / dt of the scene).
-    #[arg(long)]
+    #[arg(long, value_parser = bounds::steps)]
     pub steps: Option<u64>,
     /// Set a scene value over the file's, as section.key=value with a TOML
     /// value (repeatable), e.g. --set kernel.schedule=dynamic
@@ -188,7 +189,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub overwrite: bool,
     /// Threads (default: all cores).
-    #[arg(long, value_parser = at_least_one)]
+    #[arg(long, value_parser = bounds::threads)]
     pub threads: Option<usize>,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -214,16 +215,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub metrics: Option<PathBuf>,
     /// A metrics line every N steps, summing their counts and seconds (with --metrics).
-    #[arg(long, default_value_t = 1, value_parser = at_least_one_u64)]
+    #[arg(long, default_value_t = 1, value_parser = bounds::every)]
     pub metrics_every: u64,
-}
-
-fn at_least_one_u64(s: &str) -> Result<u64, String> {
-    match s.parse::<u64>() {
-        Ok(0) => Err("must be at least 1".into()),
-        Ok(n) => Ok(n),
-        Err(e) => Err(e.to_string()),
-    }
 }
 
 #[derive(Args, Debug)]
@@ -235,19 +228,19 @@ pub struct PartitionArgs {
     #[arg(long, default_value = "uniform")]
     pub workload: partition::workload::Workload,
     /// Items (small triangles) over all ranks.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = bounds::items)]
     pub items: u64,
     /// Time steps of the workload's motion.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = bounds::every_usize)]
     pub steps: usize,
     /// Repartition every K steps.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = bounds::every_usize)]
     pub every: usize,
     /// Contact halo for ghosts and the METIS graph (default: a quarter of the triangle size).
     #[arg(long)]
     pub halo: Option<f64>,
     /// Threads per rank (default: the cores available to the rank).
-    #[arg(long, value_parser = at_least_one)]
+    #[arg(long, value_parser = bounds::threads)]
     pub threads: Option<usize>,
     /// One JSON object per partitioning step instead of a table.
     #[arg(long)]
@@ -274,7 +267,7 @@ pub struct DistanceArgs {
     pub batch: usize,
     /// Rounds of the penalty kernel's exact finish (0: none). More rounds
     /// certify a few more pairs at a cost: see `tridem kernels --accuracy`.
-    #[arg(long, default_value_t = PenaltyParams::default().finish_rounds)]
+    #[arg(long, default_value_t = PenaltyParams::default().finish_rounds, value_parser = bounds::finish_rounds)]
     pub finish_rounds: usize,
     /// CSV input; stdin when absent.
     pub file: Option<PathBuf>,
@@ -283,24 +276,24 @@ pub struct DistanceArgs {
 #[derive(Args, Debug)]
 pub struct KernelsArgs {
     /// Number of random pairs (vertices uniform in the unit cube).
-    #[arg(long, default_value_t = 1_000_000)]
+    #[arg(long, default_value_t = 1_000_000, value_parser = bounds::items_usize)]
     pub pairs: usize,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Threads (default: all cores).
-    #[arg(long, value_parser = at_least_one)]
+    #[arg(long, value_parser = bounds::threads)]
     pub threads: Option<usize>,
     /// static, dynamic or guided.
     #[arg(long, default_value = "static")]
     pub schedule: Schedule,
     /// Batches per share with dynamic scheduling (smallest share with guided).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = bounds::grain)]
     pub grain: usize,
     /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
     #[arg(long, default_value_t = 8)]
     pub batch: usize,
     /// Timed repetitions per measurement (summarised by --statistic).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = bounds::repeat)]
     pub repeat: usize,
     /// What each time is: the median of the repetitions, or the minimum (on a
     /// machine whose speed swings, the least disturbed run).
@@ -315,13 +308,4 @@ pub struct KernelsArgs {
     /// Where --accuracy writes its CSV and SVG plot.
     #[arg(long, default_value = "out/kernels")]
     pub output: PathBuf,
-}
-
-/// A count that must be positive (threads): 0 would silently mean "all cores".
-fn at_least_one(s: &str) -> Result<usize, String> {
-    match s.parse::<usize>() {
-        Ok(0) => Err("must be at least 1".into()),
-        Ok(n) => Ok(n),
-        Err(e) => Err(e.to_string()),
-    }
 }

@@ -179,7 +179,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     // Output buffers allocated once: the rows time the kernels, not page faults.
     let mut out = vec![Closest::UNSET; pairs.len()];
     let mut stats = vec![PenaltyStats::default(); pairs.len()];
-    let rounds = args.repeat.max(1);
+    let rounds = args.repeat;
     let bar = ProgressBar::new((measures.len() * (rounds + 1)) as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed}").expect("template"),
@@ -360,7 +360,7 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     // in rounds that run every setting once, each setting's time the median
     // over rounds: measured one setting after the other, a shared machine's swings of
     // +-30% between minutes gave one setting 73-110 ns/pair within a sweep.
-    let rounds = args.repeat.max(1);
+    let rounds = args.repeat;
     let bar = ProgressBar::new((settings.len() * (1 + rounds)) as u64).with_style(
         ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed}")
             .expect("template")
@@ -562,9 +562,13 @@ impl<'a> Measure<'a> {
 /// Option values that would make the benchmark fail part-way or print
 /// meaningless numbers, refused before anything runs.
 fn check_args(args: &KernelsArgs) -> CliResult {
-    if args.pairs == 0 {
-        return Err(CliError::input("--pairs must be at least 1"));
-    }
+    // A pair (two triangles, 144 B), its answers under each method and
+    // their statistics: about 400 B.
+    crate::bounds::fits_in_memory(
+        &format!("--pairs {}", args.pairs),
+        args.pairs as f64 * 400.0,
+    )
+    .map_err(CliError::input)?;
     if !BATCH_SIZES.contains(&args.batch) {
         return Err(CliError::input(format!(
             "--batch {}: {}",

@@ -1,5 +1,6 @@
 //! `tridem`: the command-line tool of the tridem project.
 
+mod bounds;
 mod checkpoint_file;
 mod cli;
 mod distance_cmd;

@@ -14,12 +14,13 @@ use std::io::Write;
 use std::time::Instant;
 
 pub fn run(args: &PartitionArgs) -> CliResult {
-    if args.every == 0 || args.steps == 0 {
-        return Err(CliError::input("--steps and --every must be at least 1"));
-    }
-    if args.items == 0 {
-        return Err(CliError::input("--items must be at least 1"));
-    }
+    // An item's coordinates, id, weight and part in the partitioner's and
+    // the exchange's buffers: about 200 B.
+    crate::bounds::fits_in_memory(
+        &format!("--items {}", args.items),
+        args.items as f64 * 200.0,
+    )
+    .map_err(CliError::input)?;
     let universe =
         mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
     let world = universe.world();

@@ -20,6 +20,7 @@ pub fn run(args: &RunArgs) -> CliResult {
     if mpi::traits::Communicator::size(&comm) > 1 {
         return crate::run_mpi::run(args, &comm);
     }
+    refuse_resume_without_output(args)?;
     let scene = Scene::load_with(&args.scene, &args.overrides)
         .map_err(|e| CliError::input(e.to_string()))?;
     for w in &scene.warnings {
@@ -29,20 +30,7 @@ pub fn run(args: &RunArgs) -> CliResult {
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
-    let (mut sim, first) = match &args.resume {
-        None => (Simulation::new(&scene), 0),
-        Some(file) => {
-            let c = checkpoint_file::read(file)?;
-            let sim = Simulation::resume(&scene, &c).map_err(|e| {
-                CliError::input(format!(
-                    "{}: does not fit the scene {}: {e}",
-                    file.display(),
-                    args.scene.display()
-                ))
-            })?;
-            (sim, c.step)
-        }
-    };
+    let (mut sim, first) = crate::run_mpi::start(args, &scene)?;
     let last = (scene.end_time / scene.dt).round() as u64;
     let steps = match args.steps {
         Some(n) => n,
@@ -102,9 +90,19 @@ pub fn run(args: &RunArgs) -> CliResult {
     // start from inside it, and the other workers poll instead of sleeping
     // between sections (see dem::busy_workers; measured on the hopper: waking
     // threads took 25-40% of a run on a 2-core machine).
+    let mut deep_steps = 0;
     let looped: CliResult<Option<u64>> = dem::busy_workers::with_busy_workers(|| {
         for s in 1..=steps {
             sim.step();
+            deep_steps = if sim.last_stats().detection.deep_contacts > 0 {
+                deep_steps + 1
+            } else {
+                0
+            };
+            if let Err(e) = refuse_lasting_crossings(&scene, &sim, deep_steps) {
+                bar.abandon();
+                return Err(e);
+            }
             if sim.world.bodies.iter().any(|b| {
                 !(b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite())
             }) {
@@ -148,14 +146,15 @@ pub fn run(args: &RunArgs) -> CliResult {
     }
     bar.finish_and_clear();
     // So that a run that ended between output steps can be taken further.
-    if let Some(c) = checkpoint_path.as_ref().filter(|_| steps > 0) {
-        if sim.world.step % scene.output_every != 0 {
+    if let Some(c) = checkpoint_path.as_ref() {
+        if steps == 0 || sim.world.step % scene.output_every != 0 {
             let start = Instant::now();
             checkpoint_file::write(c, &sim.checkpoint())?;
             checkpoint_secs += start.elapsed().as_secs_f64();
         }
     }
     let secs = start.elapsed().as_secs_f64();
+    warn_fallen(&scene, &sim);
     if sim.totals.detection.deep_contacts > 0 {
         eprintln!(
             "tridem: warning: {} contacts went deeper than the particles' halos (triangles crossed); \
@@ -268,4 +267,92 @@ fn task_fallback_rate(d: &dem::contact::DetectionStats) -> serde_json::Value {
         "least": d.task_fallback_min / n,
         "most": d.task_fallback_max / n,
     })
+}
+
+/// Resuming continues a run's output: without a directory to write to, a
+/// resumed run would compute and keep nothing.
+pub(crate) fn refuse_resume_without_output(args: &RunArgs) -> CliResult {
+    match (&args.resume, &args.output) {
+        (Some(c), None) => Err(CliError::input(format!(
+            "--resume {}: give --output DIR too (the run's directory, to go on in its files), \
+             or the resumed run writes nothing",
+            c.display()
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// Steps in a row with contacts deeper than the halos after which a run
+/// stops: a contact that crosses for this long is not holding its bodies
+/// apart (too soft, or hit too fast), and what follows is not physics.
+pub(crate) const DEEP_STEPS: u64 = 100;
+
+/// Bodies whose surfaces cross at the start are refused, and a run whose
+/// contacts stay crossed for [`DEEP_STEPS`] steps stops, naming the pair,
+/// unless the scene sets `simulation.allow_deep_contacts`.
+pub(crate) fn refuse_crossings(scene: &Scene, sim: &Simulation, when: &str) -> CliResult {
+    if scene.allow_deep_contacts {
+        return Ok(());
+    }
+    let crossed = sim.crossed_pairs();
+    let Some(&(a, b, depth)) = crossed.iter().max_by(|x, y| x.2.total_cmp(&y.2)) else {
+        return Ok(());
+    };
+    Err(CliError::input(format!(
+        "{} and {} cross by {depth:e} m (deeper than their halos) {when}{}: move them apart, \
+         raise the stiffness or the halo, or lower dt or the speed; \
+         simulation.allow_deep_contacts = true lets the run go on",
+        scene.body_name(a),
+        scene.body_name(b),
+        match crossed.len() {
+            1 => String::new(),
+            n => format!(", as do {} more pairs", n - 1),
+        }
+    )))
+}
+
+fn refuse_lasting_crossings(scene: &Scene, sim: &Simulation, deep_steps: u64) -> CliResult {
+    if deep_steps < DEEP_STEPS {
+        return Ok(());
+    }
+    let when = format!(
+        "for {DEEP_STEPS} steps in a row (step {}, t = {:e} s); the run stops",
+        sim.world.step, sim.world.time
+    );
+    refuse_crossings(scene, sim, &when).map_err(|e| CliError::runtime(e.to_string()))
+}
+
+/// Warns of particles that ended below every obstacle, along gravity: they
+/// fell through a wall (too fast for the step, or too soft a contact) or
+/// out of the scene, and what they do no longer means anything.
+pub(crate) fn warn_fallen(scene: &Scene, sim: &Simulation) {
+    let Some(down) = scene.effects.gravity.and_then(|g| g.try_normalize()) else {
+        return;
+    };
+    let w = &sim.world;
+    let lowest_obstacle = w
+        .bodies
+        .iter()
+        .filter(|b| b.is_static())
+        .flat_map(|b| {
+            w.shapes[b.shape]
+                .vertices
+                .iter()
+                .map(|&v| (b.x + b.q * v).dot(down))
+        })
+        .fold(f64::NEG_INFINITY, f64::max);
+    if lowest_obstacle == f64::NEG_INFINITY {
+        return;
+    }
+    let fallen: Vec<usize> = (0..w.bodies.len())
+        .filter(|&i| !w.bodies[i].is_static() && w.bodies[i].x.dot(down) > lowest_obstacle)
+        .collect();
+    if let Some(&first) = fallen.first() {
+        eprintln!(
+            "tridem: warning: {} particles ended below every obstacle (fell through a wall or \
+             out of the scene), the first {}",
+            fallen.len(),
+            scene.body_name(first)
+        );
+    }
 }

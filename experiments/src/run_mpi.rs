@@ -94,6 +94,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             .and_then(|_| flag::register(signal, Arc::clone(&stop)))
             .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
     }
+    agree(comm, crate::run_cmd::refuse_resume_without_output(args))?;
     let scene = agree(
         comm,
         Scene::load_with(&args.scene, &args.overrides).map_err(|e| CliError::input(e.to_string())),
@@ -174,6 +175,18 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             .step(stop.load(Ordering::Relaxed))
             .map_err(CliError::runtime);
         let stopping = agree(comm, stopping)?;
+        if dist.deep_steps_in_a_row() >= crate::run_cmd::DEEP_STEPS && !scene.allow_deep_contacts {
+            bar.abandon();
+            let e = CliError::runtime(format!(
+                "contacts stayed deeper than the halos for {} steps in a row (step {}, t = {:e} s); \
+                 the run stops: raise the stiffness or the halo, or lower dt or the speed; \
+                 simulation.allow_deep_contacts = true lets the run go on",
+                crate::run_cmd::DEEP_STEPS,
+                dist.world.step,
+                dist.world.time
+            ));
+            return agree(comm, Err(e));
+        }
         totals.accumulate(dist.metrics());
         interval.extend_interval(dist.metrics());
         if s % args.metrics_every == 0 || s == steps {
@@ -217,9 +230,15 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
 
 /// The simulation every rank starts from: new, or resumed from a checkpoint
 /// (read by every rank), and its first step.
-fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
+/// The run's simulation, new (refused when bodies cross at the start) or
+/// resumed from a checkpoint, and its first step.
+pub(crate) fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
     match &args.resume {
-        None => Ok((Simulation::new(scene), 0)),
+        None => {
+            let sim = Simulation::new(scene);
+            crate::run_cmd::refuse_crossings(scene, &sim, "at the start")?;
+            Ok((sim, 0))
+        }
         Some(file) => {
             let c = checkpoint_file::read(file)?;
             let sim = Simulation::resume(scene, &c).map_err(|e| {

@@ -39,9 +39,6 @@ pub fn run(args: &ScalingArgs) -> CliResult {
             "--threads needs thread counts of at least 1",
         ));
     }
-    if args.repeat == 0 {
-        return Err(CliError::input("--repeat must be at least 1"));
-    }
     let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
     let steps = args
         .steps

@@ -547,8 +547,9 @@ fn overwrite_replaces_the_whole_run_checkpoint_included() {
         "--overwrite",
     ]);
     assert_eq!(code, 0, "{err}");
-    // No step was run: no checkpoint of this run, and none of the old one.
-    assert!(!dir.join("checkpoint.h5").exists());
+    // No step was run: the checkpoint it announces is this run's start,
+    // none of the old run's.
+    assert_eq!(checkpoint_of(&dir).0, 0);
     assert_eq!(positions_of_every_step(&dir.join("run.h5")).len(), 1);
     let _ = std::fs::remove_dir_all(&dir);
 }
