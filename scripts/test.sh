@@ -15,3 +15,9 @@ echo "== cargo doc"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== cargo test"
 cargo test --workspace --release
+echo "== SLURM job templates on a local single-node SLURM"
+if [ "$(id -u)" -eq 0 ]; then
+  scripts/test-slurm.sh
+else
+  echo "skipped: starting slurmctld and slurmd needs root (scripts/test-slurm.sh)"
+fi

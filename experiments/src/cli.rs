@@ -302,6 +302,9 @@ pub struct KernelsArgs {
     /// Print a JSON array instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Print one JSON object per row and line (JSON lines), to append to a file.
+    #[arg(long, conflicts_with = "json")]
+    pub jsonl: bool,
     /// Sweep iterations, penalty r, tolerance and batch size: error against time.
     #[arg(long)]
     pub accuracy: bool,

@@ -227,7 +227,11 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         })
         .collect();
 
-    if args.json {
+    if args.jsonl {
+        for r in &rows {
+            println!("{}", serde_json::to_string(r).expect("rows serialise"));
+        }
+    } else if args.json {
         println!(
             "{}",
             serde_json::to_string_pretty(&rows).expect("rows serialise")

@@ -15,11 +15,8 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use partition::comm::all_gather_v;
-use signal_hook::consts::TERM_SIGNALS;
-use signal_hook::flag;
 use std::io::Write;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// Every rank's outcome agreed on (collective): `Ok` on every rank, or an
@@ -88,12 +85,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     // A batch system's time limit signals every rank; each stops after the
     // step under way, and all agree on it within that step. Handled from
     // the start, so that no signal finds a rank without its handler.
-    let stop = Arc::new(AtomicBool::new(false));
-    for &signal in TERM_SIGNALS {
-        flag::register_conditional_shutdown(signal, 1, Arc::clone(&stop))
-            .and_then(|_| flag::register(signal, Arc::clone(&stop)))
-            .map_err(|e| CliError::runtime(format!("cannot handle signal {signal}: {e}")))?;
-    }
+    let stop = crate::run_cmd::stop_on_signals()?;
     agree(comm, crate::run_cmd::refuse_resume_without_output(args))?;
     let scene = agree(
         comm,

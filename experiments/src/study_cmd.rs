@@ -2,7 +2,7 @@
 //! allocation, answered on real distributed runs of a scene. Each study
 //! starts its runs under mpirun (`$MPIRUN`, default `mpirun`, with
 //! `$MPIRUN_ARGS`, default `--oversubscribe`; `MPIRUN=srun` inside a SLURM
-//! allocation), keeps every run's metrics
+//! allocation, with `--mpi=pmix` unless `$TRIDEM_SRUN_MPI` says), keeps every run's metrics
 //! (`DIR/runs/LABEL.jsonl`), writes one summary CSV and its figures (SVG),
 //! and prints a short table.
 
@@ -198,10 +198,18 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
             .arg(dir.join("runs").join(&spec.label));
         c
     } else {
-        // SLURM's srun takes the task count as -n and needs no oversubscription.
+        // SLURM's srun takes the task count as -n, needs no oversubscription,
+        // and starts Debian's Open MPI through PMIx ($TRIDEM_SRUN_MPI names
+        // another plugin).
         let srun = launcher.ends_with("srun");
-        let extra = std::env::var("MPIRUN_ARGS")
-            .unwrap_or_else(|_| if srun { "" } else { "--oversubscribe" }.into());
+        let extra = std::env::var("MPIRUN_ARGS").unwrap_or_else(|_| {
+            if srun {
+                let plugin = std::env::var("TRIDEM_SRUN_MPI").unwrap_or_else(|_| "pmix".into());
+                format!("--mpi={plugin}")
+            } else {
+                "--oversubscribe".into()
+            }
+        });
         let mut c = Command::new(&launcher);
         c.args(extra.split_whitespace())
             .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])

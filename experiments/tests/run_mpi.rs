@@ -2,7 +2,7 @@
 //! process gives, to the bit, on any rank count, with any partitioner and
 //! any repartitioning; resumes on another rank count; survives empty ranks,
 //! bad input and signals with one clear message.
-use mpi_harness::{launcher, open_mpi_local_args, open_mpi_local_env};
+use mpi_harness::{launch_args, launcher, open_mpi_local_env};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -36,8 +36,7 @@ fn run(ranks: usize, args: &[&str]) -> Ran {
         Command::new(tridem())
     } else {
         let mut c = Command::new(launcher());
-        c.args(open_mpi_local_args())
-            .args(["-np", &ranks.to_string(), tridem()]);
+        c.args(launch_args(ranks)).arg(tridem());
         c
     };
     cmd.args(args).envs(open_mpi_local_env());
@@ -352,15 +351,8 @@ fn sigterm_checkpoints_and_ends_every_rank() {
     let out = dir.join("out");
     let silo = scene("silo-1000.toml");
     let mut cmd = Command::new(launcher());
-    cmd.args(open_mpi_local_args())
-        .args([
-            "-np",
-            "2",
-            tridem(),
-            "run",
-            silo.to_str().unwrap(),
-            "--quiet",
-        ])
+    cmd.args(launch_args(2))
+        .args([tridem(), "run", silo.to_str().unwrap(), "--quiet"])
         .args(["--output", out.to_str().unwrap()])
         .envs(open_mpi_local_env())
         .stdout(Stdio::piped())

@@ -118,10 +118,18 @@ pub fn launcher() -> String {
     std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into())
 }
 
-/// Arguments and environment that let Open MPI run as root, oversubscribed, on
-/// one machine. Returned so that the `tridem` launcher and tests agree.
-pub fn open_mpi_local_args() -> Vec<String> {
-    vec!["--oversubscribe".into()]
+/// The launcher's arguments for `ranks` processes: `mpirun --oversubscribe
+/// -np N` (Open MPI on one machine, more ranks than cores allowed), or, when
+/// `$MPIRUN` is SLURM's srun inside an allocation, `srun --mpi=pmix -n N`
+/// (Debian's Open MPI needs PMIx to be started by srun; `$TRIDEM_SRUN_MPI`
+/// names another plugin). Shared so that `tridem study` and the tests agree.
+pub fn launch_args(ranks: usize) -> Vec<String> {
+    if launcher().ends_with("srun") {
+        let plugin = std::env::var("TRIDEM_SRUN_MPI").unwrap_or_else(|_| "pmix".into());
+        vec![format!("--mpi={plugin}"), "-n".into(), ranks.to_string()]
+    } else {
+        vec!["--oversubscribe".into(), "-np".into(), ranks.to_string()]
+    }
 }
 
 /// Environment for Open MPI on a single machine, possibly as root, in a container.
@@ -243,9 +251,7 @@ impl MpiRun {
         let dir = tempdir()?;
         let launcher = launcher();
         let mut cmd = Command::new(&launcher);
-        cmd.args(open_mpi_local_args())
-            .arg("-np")
-            .arg(self.ranks.to_string())
+        cmd.args(launch_args(self.ranks))
             .arg(&self.program)
             .args(&self.args)
             .env(REPORT_DIR_VAR, &dir)

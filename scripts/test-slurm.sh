@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# Submits the job templates to a local single-node SLURM at a tiny size and
+# checks what they write: kernels (JSON lines), the accuracy study (one
+# node), the exchange study (two tasks started by srun --mpi=pmix), and
+# dem-run through signal -> checkpoint -> requeue -> resume, whose final
+# checkpoint must equal an uninterrupted run's byte for byte.
+# Usage: scripts/test-slurm.sh (as root; starts the local SLURM with
+# scripts/slurm-local.sh and stops it again if it started it).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/env.sh
+scripts/install-deps.sh --slurm >/dev/null
+cargo build --release -p experiments >&2
+started=0
+if ! sinfo -h >/dev/null 2>&1; then
+  scripts/slurm-local.sh up
+  started=1
+fi
+trap '[ "$started" -eq 1 ] && scripts/slurm-local.sh down' EXIT
+work=out/test-slurm
+rm -rf "$work"
+mkdir -p "$work"
+fail() { echo "test-slurm: FAIL: $*" >&2; exit 1; }
+state_of() { scontrol show job "$1" -o 2>/dev/null | grep -o 'JobState=[A-Z_]*' | cut -d= -f2; }
+# Waits for job $1 to end (at most $2 seconds) and prints its state.
+finish() {
+  local t=0 s
+  while s=$(state_of "$1"); [[ "$s" =~ ^(PENDING|RUNNING|CONFIGURING|COMPLETING|REQUEUED)$ ]]; do
+    sleep 1; t=$((t + 1)); [ "$t" -lt "$2" ] || fail "job $1 still $s after $2 s"
+  done
+  echo "$s"
+}
+submit() { jobs/submit.sh --parsable "$@"; }
+
+id=$(submit jobs/kernels.sbatch 2000)
+[ "$(finish "$id" 300)" = COMPLETED ] || fail "kernels: $(cat out/slurm-tridem-kernels-"$id".out)"
+f=out/kernels-$id.jsonl
+[ -s "$f" ] || fail "kernels wrote no $f"
+if grep -qv '^{.*}$' "$f"; then fail "$f is not JSON lines"; fi
+grep -q '"schedule":"dynamic"' "$f" || fail "$f has no dynamic rows"
+echo "test-slurm: kernels ok ($(wc -l < "$f") rows)" >&2
+
+id=$(submit jobs/study-accuracy.sbatch scenes/silo-1000.toml 20)
+[ "$(finish "$id" 300)" = COMPLETED ] || fail "study-accuracy: $(cat out/slurm-tridem-accuracy-"$id".out)"
+d=out/study-accuracy-$id
+[ "$(wc -l < "$d/summary.csv")" -eq 14 ] || fail "$d/summary.csv"
+[ -s "$d/accuracy.png" ] || fail "$d/accuracy.png"
+echo "test-slurm: study-accuracy ok" >&2
+
+id=$(submit --ntasks=2 jobs/study-exchange.sbatch scenes/silo-1000.toml 20)
+[ "$(finish "$id" 300)" = COMPLETED ] || fail "study-exchange: $(cat out/slurm-tridem-exchange-"$id".out)"
+d=out/study-exchange-$id
+[ "$(wc -l < "$d/summary.csv")" -eq 3 ] || fail "$d/summary.csv: $(cat "$d/summary.csv")"
+echo "test-slurm: study-exchange ok (srun --mpi=pmix)" >&2
+
+# dem-run: the hopper uninterrupted, and as a job stopped by SLURM's signal
+# once it has a checkpoint, requeued and resumed.
+scene=scenes/hopper.toml
+target/release/tridem run "$scene" --output "$work/straight" --threads 2 --quiet >/dev/null
+id=$(submit --export=ALL,SCENE=$scene,DIR=$work/requeued jobs/dem-run.sbatch)
+t=0
+until [ -f "$work/requeued/checkpoint.h5" ]; do
+  sleep 0.2; t=$((t + 1)); [ "$t" -lt 600 ] || fail "dem-run wrote no checkpoint"
+done
+scancel -b --signal=TERM "$id"
+[ "$(finish "$id" 600)" = COMPLETED ] || fail "dem-run: $(cat out/slurm-tridem-dem-run-"$id".out)"
+grep -q "stopped by a signal" out/slurm-tridem-dem-run-"$id".out || fail "dem-run was not stopped by the signal"
+cmp "$work/straight/checkpoint.h5" "$work/requeued/checkpoint.h5" ||
+  fail "the requeued run's final checkpoint differs from the uninterrupted run's"
+echo "test-slurm: dem-run ok (signal, checkpoint, requeue, resume: bit for bit)" >&2
+echo "test-slurm: all templates ran" >&2
