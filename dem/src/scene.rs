@@ -6,6 +6,9 @@
 //! dt = 1e-5              # s
 //! end_time = 0.2         # s
 //! output_every = 1000    # steps between outputs
+//! # allow_unstable_dt = true    # run a step above the stable one, with a warning
+//! # allow_deep_contacts = true  # start with bodies crossing, and go on when
+//! #                             # contacts stay deeper than the halos
 //!
 //! [effects]              # only these are computed
 //! gravity = { g = [0.0, 0.0, -9.81] }
@@ -32,6 +35,12 @@
 //! material = "glass"
 //! shape = { kind = "box", size = [0.2, 0.2, 0.01] }
 //! position = [0.0, 0.0, -0.005]
+//!
+//! [kernel]               # contact detection (docs/dem.md, docs/distance.md)
+//! method = "hybrid"      # brute, penalty or hybrid
+//! fallback_failed_pairs = true
+//! schedule = "guided"    # static, dynamic or guided
+//! # batch = 8, grain, iterations = 4, finish_rounds = 1, tolerance = 1e-13
 //!
 //! [parallel]             # under mpirun (the command line wins)
 //! partitioner = "zoltan-rcb"   # zoltan-rib, zoltan-hsfc, metis, rcb
@@ -471,20 +480,50 @@ fn refuse_non_finite(ctx: &Ctx) -> Result<(), SceneError> {
     let mut key = String::new();
     for line in ctx.text.split_inclusive('\n') {
         let code = strip_strings_and_comment(line);
-        if let Some((k, _)) = code.split_once('=') {
-            if !k.trim_start().starts_with('[') {
-                key = k.trim().to_string();
-            }
+        if code.trim_start().starts_with('[') && !code.contains('=') {
+            offset += line.len();
+            continue;
         }
-        let value = code.split_once('=').map_or(code.as_str(), |(_, v)| v);
-        let bad = value
-            .split(|c: char| c.is_whitespace() || ",[]{}=".contains(c))
-            .find(|w| matches!(w.trim_start_matches(['+', '-']), "nan" | "inf"));
-        if let Some(word) = bad {
-            return ctx.err(
-                offset..offset + line.len(),
-                format!("{key} = {word}: every number of a scene must be finite"),
-            );
+        // Keys of the inline tables the value sits in ("contact.skin").
+        let mut tables: Vec<String> = Vec::new();
+        for (i, part) in code.split('=').enumerate() {
+            let next_key = part
+                .trim_end()
+                .rsplit(|c: char| c.is_whitespace() || ",{[".contains(c))
+                .next()
+                .unwrap_or("")
+                .to_string();
+            let value = if i == 0 {
+                ""
+            } else {
+                &part[..part.trim_end().len() - next_key.len()]
+            };
+            let bad = value
+                .split(|c: char| c.is_whitespace() || ",[]{}".contains(c))
+                .find(|w| matches!(w.trim_start_matches(['+', '-']), "nan" | "inf"));
+            if let Some(word) = bad {
+                let path: Vec<&str> = tables
+                    .iter()
+                    .map(String::as_str)
+                    .chain([key.as_str()])
+                    .collect();
+                return ctx.err(
+                    offset..offset + line.len(),
+                    format!(
+                        "{} = {word}: every number of a scene must be finite",
+                        path.join(".")
+                    ),
+                );
+            }
+            if i > 0 && value.trim_start().starts_with('{') {
+                tables.push(key.clone());
+            }
+            for _ in 0..value.matches('}').count() {
+                tables.pop();
+            }
+            if !next_key.is_empty() && i + 1 < code.split('=').count() {
+                key = next_key;
+            }
         }
         offset += line.len();
     }

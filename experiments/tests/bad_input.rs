@@ -368,3 +368,41 @@ fn the_pairs_csv_reader_never_panics() {
         );
     }
 }
+
+#[test]
+fn a_run_whose_contacts_stay_crossed_stops_unless_the_scene_allows_it() {
+    let dir = temp("crossed");
+    // Two grains meeting head-on through a contact a million times too soft
+    // to part them: they pass into each other, surfaces crossed for
+    // hundreds of steps.
+    let text = |allow: &str| {
+        let grain = |x: f64, v: f64| {
+            format!(
+                "[[particles]]\nmaterial = \"glass\"\n\
+                 shape = {{ kind = \"hull\", triangles = 20, radius = 0.005, seed = 7 }}\n\
+                 placement = {{ kind = \"single\", position = [{x}, 0.0, 0.0] }}\n\
+                 velocity = [{v}, 0.0, 0.0]\n\n"
+            )
+        };
+        format!(
+            "[simulation]\ndt = 5e-5\nend_time = 0.05\n{allow}\n\n\
+             [effects]\ncontact = {{}}\nrotation = {{}}\n\n\
+             [[materials]]\nname = \"glass\"\ndensity = 2500.0\nstiffness = 0.001\n\
+             restitution = 0.5\nhalo = 2.5e-4\n\n{}{}",
+            grain(-0.006, 0.5),
+            grain(0.006, -0.5)
+        )
+    };
+    let path = dir.join("crossed.toml");
+    std::fs::write(&path, text("")).unwrap();
+    let (code, _, err) = tridem(&["run", path.to_str().unwrap(), "--quiet"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("body 0") && err.contains("body 1") && err.contains("100 steps in a row"),
+        "{err}"
+    );
+    std::fs::write(&path, text("allow_deep_contacts = true")).unwrap();
+    let (code, _, err) = tridem(&["run", path.to_str().unwrap(), "--quiet"]);
+    assert_eq!(code, 0, "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
