@@ -486,13 +486,18 @@ fn refuse_non_finite(ctx: &Ctx) -> Result<(), SceneError> {
         }
         // Keys of the inline tables the value sits in ("contact.skin").
         let mut tables: Vec<String> = Vec::new();
+        let parts = code.split('=').count();
         for (i, part) in code.split('=').enumerate() {
-            let next_key = part
-                .trim_end()
-                .rsplit(|c: char| c.is_whitespace() || ",{[".contains(c))
-                .next()
-                .unwrap_or("")
-                .to_string();
+            // The last part is all value; the others end with the next key.
+            let next_key = if i + 1 == parts {
+                String::new()
+            } else {
+                part.trim_end()
+                    .rsplit(|c: char| c.is_whitespace() || ",{[".contains(c))
+                    .next()
+                    .unwrap_or("")
+                    .to_string()
+            };
             let value = if i == 0 {
                 ""
             } else {
@@ -521,7 +526,7 @@ fn refuse_non_finite(ctx: &Ctx) -> Result<(), SceneError> {
             for _ in 0..value.matches('}').count() {
                 tables.pop();
             }
-            if !next_key.is_empty() && i + 1 < code.split('=').count() {
+            if !next_key.is_empty() {
                 key = next_key;
             }
         }

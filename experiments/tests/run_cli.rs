@@ -337,21 +337,39 @@ fn a_checkpoint_that_does_not_fit_is_an_error_and_nothing_is_lost() {
     let before = std::fs::read(dir.join("run.h5")).unwrap();
 
     let hopper = scene("hopper.toml");
-    let (code, _, err) = tridem(&["run", &hopper, "--resume", c, "--steps", "1"]);
+    let scratch = base.join("scratch");
+    let o = scratch.to_str().unwrap();
+    let (code, _, err) = tridem(&["run", &hopper, "--resume", c, "--steps", "1", "--output", o]);
     assert_eq!(code, 2, "{err}");
     assert!(
         err.contains(c) && err.contains("another scene") && !err.contains("panicked"),
         "{err}"
     );
     let missing = base.join("none.h5");
-    let (code, _, err) = tridem(&["run", &drop, "--resume", missing.to_str().unwrap()]);
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--resume",
+        missing.to_str().unwrap(),
+        "--output",
+        o,
+    ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("none.h5: no such checkpoint file"), "{err}");
     let not_h5 = base.join("scene-as-checkpoint.h5");
     std::fs::copy(&drop, &not_h5).unwrap();
-    let (code, _, err) = tridem(&["run", &drop, "--resume", not_h5.to_str().unwrap()]);
+    let (code, _, err) = tridem(&[
+        "run",
+        &drop,
+        "--resume",
+        not_h5.to_str().unwrap(),
+        "--output",
+        o,
+    ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("not an HDF5 file"), "{err}");
+    // Refused before anything was written.
+    assert!(!scratch.exists());
 
     // An older checkpoint resumed into the output of a run that went past
     // it would interleave two histories: refused, and the file untouched.
@@ -381,7 +399,7 @@ fn a_checkpoint_that_does_not_fit_is_an_error_and_nothing_is_lost() {
     end = end.replace("end_time = 0.4", "end_time = 0.03");
     let short = base.join("short.toml");
     std::fs::write(&short, end).unwrap();
-    let (code, _, err) = tridem(&["run", short.to_str().unwrap(), "--resume", c]);
+    let (code, _, err) = tridem(&["run", short.to_str().unwrap(), "--resume", c, "--output", o]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("nothing left to run"), "{err}");
     // A fresh run into the directory would replace it: only when asked to.

@@ -391,6 +391,8 @@ fn sigterm_checkpoints_and_ends_every_rank() {
             silo.to_str().unwrap(),
             "--resume",
             c.to_str().unwrap(),
+            "--output",
+            out.to_str().unwrap(),
             "--steps",
             "10",
             "--quiet",

@@ -6,11 +6,16 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn study(name: &str, extra: &[&str]) -> (PathBuf, String) {
+    study_of(name, "30", extra)
+}
+
+/// A study of `steps` steps per run.
+fn study_of(name: &str, steps: &str, extra: &[&str]) -> (PathBuf, String) {
     let dir = std::env::temp_dir().join(format!("tridem-study-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/silo-1000.toml");
     let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
-        .args(["study", name, "--steps", "30", "--metrics-every", "5"])
+        .args(["study", name, "--steps", steps, "--metrics-every", "5"])
         .arg("--scene")
         .arg(&scene)
         .arg("--output")
@@ -103,7 +108,8 @@ fn num(row: &std::collections::HashMap<String, String>, column: &str) -> f64 {
 
 #[test]
 fn scheduling_study_finds_the_answers_independent_of_threads_and_schedule() {
-    let (dir, _) = study("scheduling", &["--threads", "1,2"]);
+    // Long enough for the grains to settle onto the floor: pairs to fall back on.
+    let (dir, _) = study_of("scheduling", "300", &["--threads", "1,2"]);
     let rows = node_rows(&dir);
     assert_eq!(
         rows.len(),
@@ -136,7 +142,7 @@ fn scheduling_study_finds_the_answers_independent_of_threads_and_schedule() {
 
 #[test]
 fn accuracy_study_measures_deviation_from_brute_force() {
-    let (dir, out) = study("accuracy", &[]);
+    let (dir, out) = study_of("accuracy", "300", &[]);
     let rows = node_rows(&dir);
     let row = |label: &str| rows.iter().find(|r| r["label"] == label).unwrap();
     assert_eq!(row("brute")["identical_to_reference"], "true");
