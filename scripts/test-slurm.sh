@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Submits the job templates to a local single-node SLURM at a tiny size and
-# checks what they write: kernels (JSON lines), the accuracy study (one
-# node), the exchange study (two tasks started by srun --mpi=pmix), and
+# checks what they write: kernels (JSON lines), the studies (on one node,
+# or on two tasks started by srun --mpi=pmix), the partition sweep, and
 # dem-run through signal -> checkpoint -> requeue -> resume, whose final
 # checkpoint must equal an uninterrupted run's byte for byte.
 # Usage: scripts/test-slurm.sh (as root; starts the local SLURM with
@@ -52,6 +52,19 @@ id=$(submit --ntasks=2 jobs/study-exchange.sbatch scenes/silo-1000.toml 20)
 d=out/study-exchange-$id
 [ "$(wc -l < "$d/summary.csv")" -eq 3 ] || fail "$d/summary.csv: $(cat "$d/summary.csv")"
 echo "test-slurm: study-exchange ok (srun --mpi=pmix)" >&2
+
+id=$(submit jobs/study-scheduling.sbatch scenes/silo-1000.toml 20)
+[ "$(finish "$id" 300)" = COMPLETED ] || fail "study-scheduling: $(cat out/slurm-tridem-scheduling-"$id".out)"
+[ -s "out/study-scheduling-$id/step-time.png" ] || fail "study-scheduling wrote no figures"
+for study in partitioners repartition-frequency; do
+  id=$(submit --ntasks=2 "jobs/study-$study.sbatch" scenes/silo-1000.toml 20)
+  [ "$(finish "$id" 300)" = COMPLETED ] || fail "study-$study: $(cat out/slurm-tridem-"$study"-"$id".out)"
+  [ -s "out/study-$study-$id/summary.csv" ] || fail "study-$study wrote no summary"
+done
+id=$(submit --ntasks=2 jobs/partition-sweep.sbatch 2000)
+[ "$(finish "$id" 300)" = COMPLETED ] || fail "partition-sweep: $(cat out/slurm-tridem-partition-"$id".out)"
+[ -n "$(ls out/partition-"$id")" ] || fail "partition-sweep wrote nothing"
+echo "test-slurm: study-scheduling, study-partitioners, study-repartition-frequency, partition-sweep ok" >&2
 
 # dem-run: the hopper uninterrupted, and as a job stopped by SLURM's signal
 # once it has a checkpoint, requeued and resumed.
