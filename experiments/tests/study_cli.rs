@@ -33,21 +33,15 @@ fn study_of(name: &str, steps: &str, extra: &[&str]) -> (PathBuf, String) {
     (dir, stdout)
 }
 
-/// The summary's rows as maps from column to value.
-fn rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
+type Row = std::collections::HashMap<String, String>;
+
+/// The summary's rows as maps from column to value, after checking that it
+/// has the documented `columns`.
+fn summary_rows(dir: &Path, columns: &[&str]) -> Vec<Row> {
     let text = std::fs::read_to_string(dir.join("summary.csv")).unwrap();
     let mut lines = text.lines();
     let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-    for column in [
-        "label",
-        "ranks",
-        "seconds_per_step",
-        "triangle_imbalance_mean",
-        "partition_seconds",
-        "migration_seconds",
-        "wait_seconds",
-        "ghosts_received",
-    ] {
+    for column in columns {
         assert!(head.iter().any(|h| h == column), "no column {column}");
     }
     lines
@@ -58,6 +52,23 @@ fn rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
                 .collect()
         })
         .collect()
+}
+
+/// A distributed study's summary.
+fn rows(dir: &Path) -> Vec<Row> {
+    summary_rows(
+        dir,
+        &[
+            "label",
+            "ranks",
+            "seconds_per_step",
+            "triangle_imbalance_mean",
+            "partition_seconds",
+            "migration_seconds",
+            "wait_seconds",
+            "ghosts_received",
+        ],
+    )
 }
 
 /// The figure `name` (SVG) draws something, and its PNG twin is a PNG.
@@ -74,35 +85,25 @@ fn figure(dir: &Path, name: &str) {
     );
 }
 
-/// A one-node study's summary as rows of named columns.
-fn node_rows(dir: &Path) -> Vec<std::collections::HashMap<String, String>> {
-    let text = std::fs::read_to_string(dir.join("summary.csv")).unwrap();
-    let mut lines = text.lines();
-    let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
-    for column in [
-        "label",
-        "threads",
-        "seconds_per_step",
-        "narrow_phase_idle_fraction",
-        "fallback_rate",
-        "task_fallback_least",
-        "task_fallback_most",
-        "rms_deviation_m",
-        "identical_to_reference",
-    ] {
-        assert!(head.iter().any(|h| h == column), "no column {column}");
-    }
-    lines
-        .map(|l| {
-            head.iter()
-                .cloned()
-                .zip(l.split(',').map(String::from))
-                .collect()
-        })
-        .collect()
+/// A one-node study's summary.
+fn node_rows(dir: &Path) -> Vec<Row> {
+    summary_rows(
+        dir,
+        &[
+            "label",
+            "threads",
+            "seconds_per_step",
+            "narrow_phase_idle_fraction",
+            "fallback_rate",
+            "task_fallback_least",
+            "task_fallback_most",
+            "rms_deviation_m",
+            "identical_to_reference",
+        ],
+    )
 }
 
-fn num(row: &std::collections::HashMap<String, String>, column: &str) -> f64 {
+fn num(row: &Row, column: &str) -> f64 {
     row[column].parse().unwrap()
 }
 
