@@ -1,10 +1,7 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
-use crate::effects::{
-    ContactEffect, DampingEffect, Effect, Forces, FrictionEffect, GravityEffect, StepContext,
-    StepStats,
-};
+use crate::effects::{Effect, Forces, RotationParams, StepContext, StepStats};
 use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
 use crate::timing::{seconds_since, SectionTimes};
@@ -87,10 +84,9 @@ impl Simulation {
     /// evaluates the forces of the scene's initial state.
     pub fn new(scene: &Scene) -> Simulation {
         let mut sim = Simulation::pipeline(scene);
-        let names: Vec<_> = sim.effects.iter().map(|e| e.name()).collect();
         sim.evaluate_forces();
         // Time counts from the first step.
-        sim.timings = SectionTimes::for_effects(names);
+        sim.timings = SectionTimes::for_effects(&sim.effects);
         sim
     }
 
@@ -214,28 +210,11 @@ impl Simulation {
     /// The effects the scene declares, on the scene's world; forces not yet evaluated.
     fn pipeline(scene: &Scene) -> Simulation {
         let world = scene.world.clone();
-        let mut effects: Vec<Box<dyn Effect>> = Vec::new();
-        if let Some(g) = scene.effects.gravity {
-            effects.push(Box::new(GravityEffect { g }));
-        }
-        if scene.effects.contact {
-            effects.push(Box::new(ContactEffect::new(
-                &world,
-                scene.kernel,
-                scene.effects.contact_skin,
-                scene.effects.rotation,
-            )));
-        }
-        if scene.effects.friction {
-            effects.push(Box::new(FrictionEffect::new(&world)));
-        }
-        if let Some((linear, angular)) = scene.effects.damping {
-            effects.push(Box::new(DampingEffect {
-                linear,
-                angular,
-                ledger: Default::default(),
-            }));
-        }
+        let effects: Vec<Box<dyn Effect>> = scene
+            .effects
+            .iter()
+            .filter_map(|e| e.build(scene))
+            .collect();
         let shape_radius = world
             .shapes
             .iter()
@@ -244,7 +223,7 @@ impl Simulation {
         let mut sim = Simulation {
             world,
             dt: scene.dt,
-            rotation: scene.effects.rotation,
+            rotation: scene.effects.has::<RotationParams>(),
             motion_unknown: false,
             shape_radius,
             effects,
@@ -256,8 +235,7 @@ impl Simulation {
             totals: StepStats::default(),
             timings: SectionTimes::default(),
         };
-        let names: Vec<_> = sim.effects.iter().map(|e| e.name()).collect();
-        sim.timings = SectionTimes::for_effects(names);
+        sim.timings = SectionTimes::for_effects(&sim.effects);
         sim
     }
 

@@ -3,6 +3,7 @@
 //! not speed up with more threads shows here. Wall-clock seconds, summed over
 //! steps; for finding bottlenecks, never asserted on by tests.
 
+use crate::effects::Effect;
 use std::ops::AddAssign;
 use std::time::Instant;
 
@@ -46,13 +47,19 @@ pub struct SectionTimes {
     /// the contact effect's time and is broken down in `detection`.
     pub effects: Vec<(&'static str, f64)>,
     pub detection: DetectionTimes,
+    /// The effect whose time includes `detection`, if any.
+    pub detecting_effect: Option<&'static str>,
 }
 
 impl SectionTimes {
-    /// Zero time for the effects `names`.
-    pub fn for_effects(names: impl IntoIterator<Item = &'static str>) -> SectionTimes {
+    /// Zero time for the pipeline's `effects`.
+    pub fn for_effects(effects: &[Box<dyn Effect>]) -> SectionTimes {
         SectionTimes {
-            effects: names.into_iter().map(|n| (n, 0.0)).collect(),
+            effects: effects.iter().map(|e| (e.name(), 0.0)).collect(),
+            detecting_effect: effects
+                .iter()
+                .find(|e| e.detects_contacts())
+                .map(|e| e.name()),
             ..SectionTimes::default()
         }
     }

@@ -3,6 +3,7 @@
 use crate::body::Body;
 use crate::material::Material;
 use crate::mesh::TriMesh;
+use glam::DVec3;
 
 /// Everything that is simulated. Shapes are meshes in body coordinates (centre
 /// of mass at the origin for particles; obstacles keep their own frame).
@@ -69,6 +70,70 @@ impl World {
         h.0
     }
 
+    /// Pairs (inner, outer) of bodies of which the first lies wholly inside
+    /// the second: their surfaces need not cross, so no contact sees them.
+    ///
+    /// Only a body whose box lies within another's can be inside it; such
+    /// pairs are found by sweeping the moving bodies' boxes along the axis
+    /// on which their centres spread most, and testing each obstacle against
+    /// every moving body (as the broad phase does). For each, one vertex of
+    /// the inner body is tested against the outer mesh by its winding number:
+    /// when the surfaces do not cross, one vertex inside means all are.
+    pub fn enclosed_pairs(&self) -> Vec<(usize, usize)> {
+        let boxes: Vec<(DVec3, DVec3)> = (0..self.bodies.len())
+            .map(|i| self.world_bounds(i))
+            .collect();
+        let (fixed, mut moving): (Vec<usize>, Vec<usize>) =
+            (0..self.bodies.len()).partition(|&i| self.bodies[i].is_static());
+        let axis = spread_axis(moving.iter().map(|&i| 0.5 * (boxes[i].0 + boxes[i].1)));
+        moving.sort_by(|&a, &b| {
+            boxes[a].0[axis]
+                .total_cmp(&boxes[b].0[axis])
+                .then(a.cmp(&b))
+        });
+        let mut candidates = Vec::new();
+        for (k, &a) in moving.iter().enumerate() {
+            for &b in moving[k + 1..]
+                .iter()
+                .take_while(|&&b| boxes[b].0[axis] <= boxes[a].1[axis])
+            {
+                candidates.push((a, b));
+            }
+            candidates.extend(fixed.iter().map(|&s| (a, s)));
+        }
+        let mut out = Vec::new();
+        for (a, b) in candidates {
+            for (inner, outer) in [(a, b), (b, a)] {
+                if within(boxes[inner], boxes[outer]) && self.vertex_inside(inner, outer) {
+                    out.push((inner, outer));
+                }
+            }
+        }
+        out.sort_unstable();
+        out
+    }
+
+    /// The box around body `i`'s vertices where the body stands.
+    pub fn world_bounds(&self, i: usize) -> (DVec3, DVec3) {
+        let b = &self.bodies[i];
+        self.shapes[b.shape]
+            .vertices
+            .iter()
+            .map(|&v| b.to_world(v))
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p), hi.max(p))
+            })
+    }
+
+    /// Whether the first vertex of body `inner` lies inside body `outer`,
+    /// tested in `outer`'s own frame (where its mesh is, and where the
+    /// differences are small however far from the origin the bodies stand).
+    fn vertex_inside(&self, inner: usize, outer: usize) -> bool {
+        let (bi, bo) = (&self.bodies[inner], &self.bodies[outer]);
+        let p = bi.to_world(self.shapes[bi.shape].vertices[0]);
+        self.shapes[bo.shape].contains(bo.q.inverse() * (p - bo.x))
+    }
+
     /// Triangles of all dynamic bodies.
     pub fn particle_triangles(&self) -> usize {
         self.bodies
@@ -101,5 +166,25 @@ impl Fnv1a {
 
     pub(crate) fn f64(&mut self, v: f64) {
         self.u64(v.to_bits());
+    }
+}
+
+/// Whether box `inner` lies within box `outer`.
+fn within(inner: (DVec3, DVec3), outer: (DVec3, DVec3)) -> bool {
+    inner.0.cmpge(outer.0).all() && inner.1.cmple(outer.1).all()
+}
+
+/// The axis along which the points spread most.
+fn spread_axis(points: impl Iterator<Item = DVec3>) -> usize {
+    let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    let d = hi - lo;
+    if d.x >= d.y && d.x >= d.z {
+        0
+    } else if d.y >= d.z {
+        1
+    } else {
+        2
     }
 }

@@ -3,6 +3,7 @@
 //! and angles no other test uses, against analytic references and
 //! conservation laws. Each test states the property; the tolerances are those
 //! docs/dem.md lists for the contact model.
+use dem::effects::GravityParams;
 use dem::integrate::exp_map;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
@@ -606,7 +607,9 @@ fn refining_the_mesh_does_not_change_the_physics() {
 fn energy_books_balance_with_dissipation() {
     let rotation = DVec3::new(0.3, 0.5, 0.1);
     let mut s = cube_on_floor(0.6, rotation, 1.0, DVec3::ZERO, Some(0.4), 0);
-    s.effects.gravity = Some(DVec3::new(0.0, 0.0, -9.81));
+    s.effects.set(GravityParams {
+        g: [0.0, 0.0, -9.81],
+    });
     s.world.bodies[0].v = DVec3::new(0.4, 0.1, -0.3);
     let mut sim = Simulation::new(&s);
     let start = sim.energies().total();

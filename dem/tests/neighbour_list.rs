@@ -4,6 +4,7 @@
 //! bit, as a broad phase in every step.
 mod common;
 
+use dem::effects::ContactParams;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -17,7 +18,7 @@ fn hopper() -> Scene {
 /// every body's position and angular momentum bits.
 fn run(scene: &Scene, skin: f64, steps: usize) -> (Vec<[u64; 4]>, Vec<Vec<u64>>, u64) {
     let mut scene = scene.clone();
-    scene.effects.contact_skin = skin;
+    scene.effects.set(ContactParams { skin });
     let mut sim = Simulation::new(&scene);
     let (mut counts, mut states) = (Vec::new(), Vec::new());
     for _ in 0..steps {
@@ -69,7 +70,7 @@ fn a_skin_changes_how_often_the_broad_phase_runs_and_nothing_else() {
 #[test]
 fn bodies_moved_by_hand_are_followed_after_forget_motion() {
     let mut scene = hopper();
-    scene.effects.contact_skin = 2e-3;
+    scene.effects.set(ContactParams { skin: 2e-3 });
     let mut sim = Simulation::new(&scene);
     for _ in 0..10 {
         sim.step();

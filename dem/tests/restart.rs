@@ -3,6 +3,7 @@
 //! scene is refused with the reason.
 
 use dem::checkpoint::Checkpoint;
+use dem::effects::FrictionParams;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -142,7 +143,7 @@ fn a_checkpoint_that_does_not_fit_the_scene_is_refused() {
     assert!(refusal(&moved_floor, &checkpoint).contains("another scene"));
 
     let mut frictionless = scene.clone();
-    frictionless.effects.friction = false;
+    frictionless.effects.remove::<FrictionParams>();
     let why = refusal(&frictionless, &checkpoint);
     assert!(why.contains("friction"), "{why}");
 

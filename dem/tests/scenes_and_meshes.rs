@@ -1,5 +1,6 @@
 //! Bad input is refused with the file, line and cause; meshes must be closed,
 //! consistently oriented and non-degenerate.
+use dem::effects::ContactParams;
 use dem::mesh::{box_mesh, MeshError, TriMesh};
 use dem::scene::Scene;
 use glam::DVec3;
@@ -63,16 +64,19 @@ fn parameters_of_undeclared_effects_are_errors() {
 
 #[test]
 fn the_contact_skin_is_read_and_bad_ones_refused() {
-    assert_eq!(parse(BASE).unwrap().effects.contact_skin, 0.0);
+    let skin = |s: &dem::scene::Scene| s.effects.get::<ContactParams>().unwrap().skin;
+    assert_eq!(skin(&parse(BASE).unwrap()), 0.0);
     let s = parse(&BASE.replace("contact = {}", "contact = { skin = 2e-4 }")).unwrap();
-    assert_eq!(s.effects.contact_skin, 2e-4);
+    assert_eq!(skin(&s), 2e-4);
     for bad in ["-1e-3", "nan", "inf"] {
         let text = BASE.replace("contact = {}", &format!("contact = {{ skin = {bad} }}"));
         let e = parse(&text).unwrap_err();
-        assert!(e.cause.contains("contact.skin"), "{bad}: {e}");
-        // A negative skin is refused at the [effects] table (line 6); NaN
-        // and infinity where they are written (line 8).
-        assert_eq!(e.line, if bad == "-1e-3" { 6 } else { 8 }, "{e}");
+        assert!(
+            e.cause.contains("contact") && e.cause.contains("skin"),
+            "{bad}: {e}"
+        );
+        // Refused where written (line 8).
+        assert_eq!(e.line, 8, "{e}");
     }
     let text = BASE.replace("contact = {}", "contact = { skim = 1e-3 }");
     let e = parse(&text).unwrap_err();

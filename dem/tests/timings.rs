@@ -2,6 +2,7 @@
 //! counted once, the parts of contact detection within the contact effect,
 //! and an effect a scene does not declare has no time. (No assertion is made
 //! on how long anything takes.)
+use dem::effects::{ContactParams, FrictionParams};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -58,8 +59,8 @@ fn sections_cover_the_pipeline_and_add_up_within_the_wall_time() {
 #[test]
 fn a_scene_without_contact_spends_nothing_on_detection() {
     let mut scene = drop_scene();
-    scene.effects.contact = false;
-    scene.effects.friction = false;
+    scene.effects.remove::<ContactParams>();
+    scene.effects.remove::<FrictionParams>();
     let mut sim = Simulation::new(&scene);
     for _ in 0..100 {
         sim.step();

@@ -119,6 +119,7 @@ impl GhostLists {
 
 /// How the ghosts' motions travel relative to the detection among owned bodies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Exchange {
     /// Posted before, completed after (the overlap of the paper's Algorithm 1).
     Nonblocking,

@@ -41,7 +41,9 @@ use dem::contact::{
     TriangleKey, TriangleSet,
 };
 use dem::distance::{Options, Triangle};
-use dem::effects::{Effect, Forces, FrictionEffect, StepContext, StepStats};
+use dem::effects::{
+    Declare, Effect, Forces, FrictionEffect, FrictionParams, StepContext, StepStats,
+};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
@@ -166,7 +168,10 @@ impl<'c> DistributedSimulation<'c> {
         let owned: Vec<usize> = (0..owner.len()).filter(|&i| owner[i] == me).collect();
         let mut is_owned = vec![false; owner.len()];
         owned.iter().for_each(|&i| is_owned[i] = true);
-        let friction = parts.effects.iter().position(|e| e.name() == "friction");
+        let friction = parts
+            .effects
+            .iter()
+            .position(|e| e.name() == <FrictionParams as Declare>::NAME);
         let mut s = DistributedSimulation {
             comm,
             part,
@@ -176,7 +181,7 @@ impl<'c> DistributedSimulation<'c> {
             rotation: parts.rotation,
             effects: parts.effects,
             friction,
-            contact: scene.effects.contact,
+            contact: scene.effects.has::<dem::effects::ContactParams>(),
             shape_radius: parts.shape_radius,
             forces: parts.forces,
             ctx: StepContext {

@@ -47,7 +47,10 @@ fn main() {
         partitioner: backend,
         repartition_every: Some(10),
         exchange: Exchange::Nonblocking,
-        skin: scene.effects.contact_skin,
+        skin: scene
+            .effects
+            .get::<dem::effects::ContactParams>()
+            .map_or(0.0, |c| c.skin),
     };
     let mut dist = DistributedSimulation::new(&comm, &scene, Simulation::new(&scene), settings)
         .unwrap_or_else(|e| panic!("{e}"));

@@ -20,23 +20,59 @@ pub struct Cli {
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Print the versions of Zoltan, MPI, HDF5 and METIS, and the ranks and threads in use.
+    #[command(after_help = "Examples:\n  \
+        tridem info\n  \
+        mpirun -np 2 tridem info --json")]
     Info(InfoArgs),
-    /// Distance between triangle pairs read as CSV (18 numbers per row) from FILE or stdin.
+    /// Distance between triangle pairs read as CSV (18 numbers per row: the
+    /// three vertices of A, then of B) from FILE or stdin.
+    ///
+    /// Prints one line per pair: distance,px,py,pz,qx,qy,qz,solver, with p on
+    /// A and q on B the closest points, and solver the kernel that answered
+    /// (brute or penalty).
+    #[command(after_help = "Examples:\n  \
+        echo 0,0,0,1,0,0,0,1,0,0,0,1,1,0,1,0,1,1 | tridem distance --header\n  \
+        tridem distance --method brute dem/tests/data/triangle-pairs.csv")]
     Distance(DistanceArgs),
     /// Benchmark the triangle-distance kernels, or sweep accuracy against time (--accuracy).
+    #[command(after_help = "Examples:\n  \
+        tridem kernels --pairs 1e6 --threads 2 --schedule guided\n  \
+        tridem kernels --accuracy --pairs 1e5 --output out/kernels")]
     Kernels(KernelsArgs),
     /// Partition a synthetic workload with one partitioner (run under mpirun).
+    #[command(after_help = "Examples:\n  \
+        mpirun -np 4 tridem partition --partitioner zoltan-rcb --workload hopper --items 1e6 --steps 20\n  \
+        mpirun -np 4 tridem partition --partitioner metis --json >> out/partition.jsonl")]
     Partition(PartitionArgs),
     /// Run a DEM scene (TOML): on this node, or under `mpirun -np P` split across P ranks.
+    ///
+    /// The scene format is in docs/dem.md ("Scenes") and in the `dem::scene`
+    /// module's documentation; scenes/ has examples.
+    #[command(after_help = "Examples:\n  \
+        tridem run scenes/hopper.toml --output out/hopper\n  \
+        tridem run scenes/hopper.toml --output out/hopper --resume out/hopper/checkpoint.h5\n  \
+        tridem run scenes/hopper.toml --steps 1000 --set kernel.method=brute --json\n  \
+        mpirun -np 4 tridem run scenes/silo.toml --partitioner rcb --repartition-every 100 \\\n      \
+        --metrics out/silo/metrics.jsonl --output out/silo")]
     Run(RunArgs),
     /// Thread scaling of a DEM scene: runs at each thread count, alternating, and the
     /// ratio of the median times, measured side by side in one invocation.
+    #[command(after_help = "Examples:\n  \
+        tridem scaling scenes/hopper.toml --threads 1,2 --repeat 5\n  \
+        tridem scaling scenes/hopper-400.toml --statistic min --json")]
     Scaling(ScalingArgs),
     /// Plot the JSON lines of `tridem partition --json` runs (time and ghosts per partitioner).
+    #[command(after_help = "Example:\n  \
+        tridem partition-plot out/partition.jsonl --output out/partition.svg")]
     PartitionPlot(PartitionPlotArgs),
     /// A study on real runs of a scene: repartition frequency, partitioners,
     /// the ghost exchange (under mpirun), thread scheduling, or what kernel
     /// accuracy costs; metrics, a summary CSV, figures (SVG and PNG) and a table.
+    #[command(after_help = "Examples:\n  \
+        tridem study partitioners --ranks 4 --steps 3000\n  \
+        tridem study exchange --ranks 2,4\n  \
+        tridem study scheduling --threads 1,2\n  \
+        tridem study accuracy --output out/study-accuracy --overwrite")]
     Study(StudyArgs),
 }
 
@@ -177,12 +213,12 @@ pub struct RunArgs {
     pub overrides: Vec<String>,
     /// Write HDF5 + XDMF output to this directory, and at each output step
     /// a checkpoint, DIR/checkpoint.h5.
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     pub output: Option<PathBuf>,
     /// Go on from a checkpoint of a run of the same scene, bit for bit as if
     /// it had not stopped; with --output to the run's directory, its output
     /// goes on in the same file. --steps counts the steps still to run.
-    #[arg(long)]
+    #[arg(long, value_name = "CHECKPOINT")]
     pub resume: Option<PathBuf>,
     /// Replace the output of an earlier run in --output DIR (refused otherwise,
     /// so that no run's output is lost by a repeated command).
@@ -197,10 +233,9 @@ pub struct RunArgs {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
-    /// Under mpirun: how particles are assigned to ranks (zoltan-rcb,
-    /// zoltan-rib, zoltan-hsfc, metis, rcb; default: the scene's
-    /// `[parallel]` partitioner, else zoltan-rcb).
-    #[arg(long)]
+    /// Under mpirun: how particles are assigned to ranks (default: the
+    /// scene's `[parallel]` partitioner, else zoltan-rcb).
+    #[arg(long, value_enum)]
     pub partitioner: Option<partition::Backend>,
     /// Under mpirun: repartition every K steps (0: only at the start;
     /// default: the scene's `[parallel]` repartition_every, else 0).
@@ -209,7 +244,7 @@ pub struct RunArgs {
     /// Under mpirun: ghost exchange overlapping the detection among owned
     /// bodies (nonblocking) or completed before it (blocking; default: the
     /// scene's, else nonblocking).
-    #[arg(long)]
+    #[arg(long, value_enum)]
     pub exchange: Option<distributed::Exchange>,
     /// Under mpirun: write per-rank metrics as JSON lines to FILE.
     #[arg(long)]
@@ -221,11 +256,11 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct PartitionArgs {
-    /// zoltan-rcb, zoltan-rib, zoltan-hsfc, metis or rcb.
-    #[arg(long)]
+    /// How items are assigned to ranks.
+    #[arg(long, value_enum)]
     pub partitioner: partition::Backend,
-    /// uniform, blobs or hopper.
-    #[arg(long, default_value = "uniform")]
+    /// Where the items are.
+    #[arg(long, value_enum, default_value = "uniform")]
     pub workload: partition::workload::Workload,
     /// Items (small triangles) over all ranks.
     #[arg(long, default_value_t = 100_000, value_parser = bounds::items)]
@@ -259,8 +294,8 @@ pub struct InfoArgs {
 
 #[derive(Args, Debug)]
 pub struct DistanceArgs {
-    /// brute, penalty or hybrid.
-    #[arg(long, default_value = "hybrid")]
+    /// Which computation answers.
+    #[arg(long, value_enum, default_value = "hybrid")]
     pub method: Method,
     /// Pairs per SIMD batch: 1, 2, 4, 8, 16, 32 or 64.
     #[arg(long, default_value_t = 8)]
@@ -269,6 +304,9 @@ pub struct DistanceArgs {
     /// certify a few more pairs at a cost: see `tridem kernels --accuracy`.
     #[arg(long, default_value_t = PenaltyParams::default().finish_rounds, value_parser = bounds::finish_rounds)]
     pub finish_rounds: usize,
+    /// First print a header line naming the columns.
+    #[arg(long)]
+    pub header: bool,
     /// CSV input; stdin when absent.
     pub file: Option<PathBuf>,
 }
@@ -283,8 +321,8 @@ pub struct KernelsArgs {
     /// Threads (default: all cores).
     #[arg(long, value_parser = bounds::threads)]
     pub threads: Option<usize>,
-    /// static, dynamic or guided.
-    #[arg(long, default_value = "static")]
+    /// How batches are shared among threads.
+    #[arg(long, value_enum, default_value = "static")]
     pub schedule: Schedule,
     /// Batches per share with dynamic scheduling (smallest share with guided).
     #[arg(long, default_value_t = 16, value_parser = bounds::grain)]

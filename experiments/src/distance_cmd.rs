@@ -41,6 +41,10 @@ pub fn run(args: &DistanceArgs) -> CliResult {
     let (out, _, _) = distances(&pairs, &opts).map_err(|e| CliError::input(e.to_string()))?;
     let stdout = std::io::stdout();
     let mut w = std::io::BufWriter::new(stdout.lock());
+    if args.header {
+        writeln!(w, "distance,px,py,pz,qx,qy,qz,solver")
+            .map_err(|e| CliError::runtime(format!("stdout: {e}")))?;
+    }
     for (r, &k) in out.iter().zip(&scales) {
         let (p, q) = (scale(r.p, k), scale(r.q, k));
         writeln!(

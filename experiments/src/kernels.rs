@@ -40,30 +40,57 @@ pub fn run(args: &KernelsArgs) -> CliResult {
     }
     let pairs = random_unit_pairs(args.pairs, args.seed);
     let pool = pool(args.threads)?;
+    let single = pool_of(1)?;
     let threads = pool.current_num_threads();
-    let isa = Isa::detect();
-    let sched = args.schedule;
-    let sched_name = sched.name();
-    let threading = Threading {
-        schedule: sched,
-        grain: args.grain,
-    };
-    let opts = |method, fallback| Options {
-        method,
-        batch: args.batch,
-        fallback,
-        threading,
-        penalty: PenaltyParams::default(),
-    };
     // Every row is one closure over shared output buffers; the closures run in
     // alternating rounds (one repetition of each per round) and each row is the
     // median of its rounds. Run one after the other, a shared machine's speed swings of
     // +-30% between minutes land on whole rows and distort the ratios between
     // them; alternated, every row sees the same swings.
-    let single = pool_of(1)?;
-    let prm = PenaltyParams::default();
-    let mut measures: Vec<Measure> = Vec::new();
-    for (method, fallback, variant) in [
+    let mut measures = methods_on_the_pool(args, &pairs, &pool);
+    measures.extend(single_thread_kernels(args, &pairs));
+    if threads > 1 {
+        measures.extend(hybrid_on_one_thread(args, &pairs, &single));
+    }
+    run_rounds(&mut measures, pairs.len(), args.repeat);
+    let rows = rows(measures, args, threads, pairs.len());
+    if args.jsonl {
+        for r in &rows {
+            println!("{}", serde_json::to_string(r).expect("rows serialise"));
+        }
+    } else if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&rows).expect("rows serialise")
+        );
+    } else {
+        print_table(&rows, args.pairs, args.seed, args.statistic.name());
+    }
+    Ok(())
+}
+
+/// The kernel's options for `method` with `fallback`, as the arguments set them.
+fn options(args: &KernelsArgs, method: Method, fallback: Fallback) -> Options {
+    Options {
+        method,
+        batch: args.batch,
+        fallback,
+        threading: Threading {
+            schedule: args.schedule,
+            grain: args.grain,
+        },
+        penalty: PenaltyParams::default(),
+    }
+}
+
+/// Brute force, penalty and the hybrid with both fallbacks, on the pool.
+fn methods_on_the_pool<'a>(
+    args: &KernelsArgs,
+    pairs: &'a [(Triangle, Triangle)],
+    pool: &'a rayon::ThreadPool,
+) -> Vec<Measure<'a>> {
+    let isa = Isa::detect();
+    [
         (Method::Brute, Fallback::WholeBatch, "exact"),
         (Method::Penalty, Fallback::WholeBatch, "simd"),
         (Method::Hybrid, Fallback::WholeBatch, "whole-batch fallback"),
@@ -72,30 +99,41 @@ pub fn run(args: &KernelsArgs) -> CliResult {
             Fallback::FailedPairs,
             "failed-pairs fallback",
         ),
-    ] {
-        let o = opts(method, fallback);
-        let (pool, pairs) = (&pool, &pairs);
-        measures.push(Measure::new(
+    ]
+    .into_iter()
+    .map(|(method, fallback, variant)| {
+        let o = options(args, method, fallback);
+        Measure::new(
             method.name(),
             variant,
             isa.name(),
-            threads,
+            pool.current_num_threads(),
             Box::new(move |out, stats| {
                 let (counts, seconds) = timed_on_awake_pool(pool, || {
                     distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
                 });
                 (Some(counts), seconds)
             }),
-        ));
-    }
-    // SIMD against scalar: one thread, the same kernel, on every instruction
-    // set this CPU has (an AVX-512 machine also shows what AVX2 gets).
+        )
+    })
+    .collect()
+}
+
+/// SIMD against scalar, one thread: the penalty kernel and brute force on
+/// every instruction set this CPU has (an AVX-512 machine also shows what
+/// AVX2 gets), and each one's scalar routine.
+fn single_thread_kernels<'a>(
+    args: &KernelsArgs,
+    pairs: &'a [(Triangle, Triangle)],
+) -> Vec<Measure<'a>> {
     let isas: Vec<Isa> = [Isa::Avx512, Isa::Avx2, Isa::Baseline]
         .into_iter()
         .filter(|i| i.available() == *i)
         .collect();
+    let batch = args.batch;
+    let prm = PenaltyParams::default();
+    let mut measures = Vec::new();
     for &chosen in &isas {
-        let (pairs, batch) = (&pairs, args.batch);
         measures.push(Measure::new(
             "penalty",
             "simd, 1 thread",
@@ -115,18 +153,16 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         "scalar, 1 thread",
         "baseline",
         1,
-        Box::new(|_, _| {
+        Box::new(move |_, _| {
             let ((), seconds) = timed(|| {
-                for (a, b) in &pairs {
+                for (a, b) in pairs {
                     std::hint::black_box(penalty_scalar(a, b, &prm));
                 }
             });
             (None, seconds)
         }),
     ));
-    // Brute force: SIMD batches against the scalar routine, one thread.
     for &chosen in &isas {
-        let pairs = &pairs;
         measures.push(Measure::new(
             "brute",
             "simd, 1 thread",
@@ -144,67 +180,82 @@ pub fn run(args: &KernelsArgs) -> CliResult {
         "scalar, 1 thread",
         "baseline",
         1,
-        Box::new(|_, _| {
+        Box::new(move |_, _| {
             let ((), seconds) = timed(|| {
-                for (a, b) in &pairs {
+                for (a, b) in pairs {
                     std::hint::black_box(dem::distance::distance_triangle_triangle(a, b));
                 }
             });
             (None, seconds)
         }),
     ));
-    // Thread scaling of the hybrid (both fallbacks), measured in the same rounds.
-    if threads > 1 {
-        for (fallback, variant) in [
-            (Fallback::WholeBatch, "whole-batch fallback"),
-            (Fallback::FailedPairs, "failed-pairs fallback"),
-        ] {
-            let o = opts(Method::Hybrid, fallback);
-            let (single, pairs) = (&single, &pairs);
-            measures.push(Measure::new(
-                "hybrid",
-                variant,
-                isa.name(),
-                1,
-                Box::new(move |out, stats| {
-                    let (counts, seconds) = timed_on_awake_pool(single, || {
-                        distance_many(pairs, &o, out, stats).expect("batch")
-                    });
-                    (Some(counts), seconds)
-                }),
-            ));
-        }
-    }
+    measures
+}
 
-    // Output buffers allocated once: the rows time the kernels, not page faults.
-    let mut out = vec![Closest::UNSET; pairs.len()];
-    let mut stats = vec![PenaltyStats::default(); pairs.len()];
-    let rounds = args.repeat;
+/// The hybrid (both fallbacks) on one thread: its thread scaling, measured
+/// in the same rounds as the pool's rows.
+fn hybrid_on_one_thread<'a>(
+    args: &KernelsArgs,
+    pairs: &'a [(Triangle, Triangle)],
+    single: &'a rayon::ThreadPool,
+) -> Vec<Measure<'a>> {
+    let isa = Isa::detect();
+    [
+        (Fallback::WholeBatch, "whole-batch fallback"),
+        (Fallback::FailedPairs, "failed-pairs fallback"),
+    ]
+    .into_iter()
+    .map(|(fallback, variant)| {
+        let o = options(args, Method::Hybrid, fallback);
+        Measure::new(
+            "hybrid",
+            variant,
+            isa.name(),
+            1,
+            Box::new(move |out, stats| {
+                let (counts, seconds) = timed_on_awake_pool(single, || {
+                    distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
+                });
+                (Some(counts), seconds)
+            }),
+        )
+    })
+    .collect()
+}
+
+/// A warm-up round, then `rounds` rounds of every measure in turn, into
+/// output buffers allocated once (the rows time the kernels, not page faults).
+fn run_rounds(measures: &mut [Measure], pairs: usize, rounds: usize) {
+    let mut out = vec![Closest::UNSET; pairs];
+    let mut stats = vec![PenaltyStats::default(); pairs];
     let bar = ProgressBar::new((measures.len() * (rounds + 1)) as u64);
     bar.set_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed}").expect("template"),
     );
-    // Round 0 is the warm-up.
     for round in 0..=rounds {
-        for m in &mut measures {
+        for m in measures.iter_mut() {
             let (counts, seconds) = (m.run)(&mut out, &mut stats);
-            let ns = seconds * 1e9 / pairs.len().max(1) as f64;
             if round > 0 {
-                m.times.push(ns);
+                m.times.push(seconds * 1e9 / pairs.max(1) as f64);
             }
             m.counts = counts.or(m.counts);
             bar.inc(1);
         }
     }
     bar.finish_and_clear();
-    let n = pairs.len() as f64;
-    let rows: Vec<Row> = measures
+}
+
+/// Each measure's row: its time by the statistic, and the fallback and
+/// certified rates where they mean something.
+fn rows(measures: Vec<Measure>, args: &KernelsArgs, threads: usize, pairs: usize) -> Vec<Row> {
+    let n = pairs as f64;
+    measures
         .into_iter()
         .map(|m| {
             let hybrid = m.method == "hybrid" && m.threads == threads;
             Row {
                 schedule: if m.threads > 1 {
-                    sched_name.into()
+                    args.schedule.name().into()
                 } else {
                     "serial".into()
                 },
@@ -225,21 +276,7 @@ pub fn run(args: &KernelsArgs) -> CliResult {
                 threads: m.threads,
             }
         })
-        .collect();
-
-    if args.jsonl {
-        for r in &rows {
-            println!("{}", serde_json::to_string(r).expect("rows serialise"));
-        }
-    } else if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&rows).expect("rows serialise")
-        );
-    } else {
-        print_table(&rows, args.pairs, args.seed, args.statistic.name());
-    }
-    Ok(())
+        .collect()
 }
 
 fn print_table(rows: &[Row], pairs: usize, seed: u64, statistic: &str) {
@@ -317,42 +354,50 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     create_output_dir(&args.output)?;
     let pairs = random_unit_pairs(args.pairs, args.seed);
     let pool = pool(args.threads.or(Some(1)))?;
-    let exact: Vec<Closest> = pool.install(|| {
-        distances(
-            &pairs,
-            &Options {
-                method: Method::Brute,
-                ..Options::default()
-            },
-        )
-        .expect("batch")
-        .0
-    });
+    let settings = sweep_settings();
+    // Accuracy first, one run per setting (it also warms up); then the times,
+    // in rounds that run every setting once, each setting's time the median
+    // over rounds: measured one setting after the other, a shared machine's swings of
+    // +-30% between minutes gave one setting 73-110 ns/pair within a sweep.
+    let bar = ProgressBar::new((settings.len() * (1 + args.repeat)) as u64).with_style(
+        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    let mut rows = sweep_accuracy(&pairs, &pool, &settings, &bar);
+    bar.set_message("timing");
+    time_sweep(&pairs, &pool, &settings, &mut rows, args.repeat, &bar);
+    bar.finish_and_clear();
+    write_sweep(args, &settings, rows)
+}
+
+/// One setting of the sweep: what it varies, the penalty kernel's
+/// parameters, and the batch size.
+type Setting = (&'static str, PenaltyParams, usize);
+
+/// Iterations (with and without the exact finish), finish rounds, penalty
+/// r, tolerance and batch size, each varied alone from the defaults.
+fn sweep_settings() -> Vec<Setting> {
     let d = PenaltyParams::default();
-    let mut settings: Vec<(&str, PenaltyParams, usize)> = Vec::new();
-    for rounds in [d.finish_rounds, 0] {
-        for it in 1..=8 {
-            let name = if rounds > 0 {
-                "iterations"
-            } else {
-                "iterations (no finish)"
+    let mut settings: Vec<Setting> = Vec::new();
+    for (name, rounds) in [
+        ("iterations", d.finish_rounds),
+        ("iterations (no finish)", 0),
+    ] {
+        for max_iterations in 1..=8 {
+            let p = PenaltyParams {
+                max_iterations,
+                finish_rounds: rounds,
+                ..d
             };
-            settings.push((
-                name,
-                PenaltyParams {
-                    max_iterations: it,
-                    finish_rounds: rounds,
-                    ..d
-                },
-                8,
-            ));
+            settings.push((name, p, 8));
         }
     }
     for finish_rounds in 0..=4 {
         settings.push(("finish rounds", PenaltyParams { finish_rounds, ..d }, 8));
     }
-    for r in [1e2, 1e4, 1e6, 1e8, 1e10] {
-        settings.push(("penalty r", PenaltyParams { penalty: r, ..d }, 8));
+    for penalty in [1e2, 1e4, 1e6, 1e8, 1e10] {
+        settings.push(("penalty r", PenaltyParams { penalty, ..d }, 8));
     }
     for tol in [1e-6, 1e-8, 1e-10, 1e-12, 1e-13] {
         settings.push(("tolerance", PenaltyParams { tol, ..d }, 8));
@@ -360,35 +405,41 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     for b in [1, 2, 4, 8, 16, 32, 64] {
         settings.push(("batch", d, b));
     }
-    // Accuracy first, one run per setting (it also warms up); then the times,
-    // in rounds that run every setting once, each setting's time the median
-    // over rounds: measured one setting after the other, a shared machine's swings of
-    // +-30% between minutes gave one setting 73-110 ns/pair within a sweep.
-    let rounds = args.repeat;
-    let bar = ProgressBar::new((settings.len() * (1 + rounds)) as u64).with_style(
-        ProgressStyle::with_template("{msg:>24} [{bar:30}] {pos}/{len} {elapsed}")
-            .expect("template")
-            .progress_chars("=> "),
-    );
-    let options = |method, prm: PenaltyParams, batch| Options {
+    settings
+}
+
+fn sweep_options(method: Method, penalty: PenaltyParams, batch: usize) -> Options {
+    Options {
         method,
         batch,
-        penalty: prm,
+        penalty,
         fallback: Fallback::WholeBatch,
         threading: Threading::default(),
-    };
+    }
+}
+
+/// Each setting's errors against brute force, and its certified and
+/// fallback rates.
+fn sweep_accuracy(
+    pairs: &[(Triangle, Triangle)],
+    pool: &rayon::ThreadPool,
+    settings: &[Setting],
+    bar: &ProgressBar,
+) -> Vec<SweepRow> {
+    let brute = sweep_options(Method::Brute, PenaltyParams::default(), 8);
+    let exact: Vec<Closest> = pool.install(|| distances(pairs, &brute).expect("batch").0);
     let n = pairs.len() as f64;
     let mut rows = Vec::new();
-    for &(sweep, prm, batch) in &settings {
+    for &(sweep, prm, batch) in settings {
         bar.set_message(sweep);
         let run = |method| {
-            pool.install(|| distances(&pairs, &options(method, prm, batch)).expect("batch"))
+            pool.install(|| distances(pairs, &sweep_options(method, prm, batch)).expect("batch"))
         };
         let (pen, _, pen_counts) = run(Method::Penalty);
         let (hyb, _, hyb_counts) = run(Method::Hybrid);
-        let mut errs = rel_errors(&pairs, &pen, &exact);
+        let mut errs = rel_errors(pairs, &pen, &exact);
         errs.sort_by(f64::total_cmp);
-        let hyb_max = rel_errors(&pairs, &hyb, &exact)
+        let hyb_max = rel_errors(pairs, &hyb, &exact)
             .into_iter()
             .fold(0.0, f64::max);
         rows.push(SweepRow {
@@ -402,26 +453,42 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
         });
         bar.inc(1);
     }
-    bar.set_message("timing");
+    rows
+}
+
+/// `rounds` rounds, each timing every setting once, penalty and hybrid.
+fn time_sweep(
+    pairs: &[(Triangle, Triangle)],
+    pool: &rayon::ThreadPool,
+    settings: &[Setting],
+    rows: &mut [SweepRow],
+    rounds: usize,
+    bar: &ProgressBar,
+) {
+    let n = pairs.len() as f64;
     for _ in 0..rounds {
-        for (&(_, prm, batch), row) in settings.iter().zip(&mut rows) {
+        for (&(_, prm, batch), row) in settings.iter().zip(rows.iter_mut()) {
             for (method, times) in [
                 (Method::Penalty, &mut row.pen_ns),
                 (Method::Hybrid, &mut row.hyb_ns),
             ] {
-                let o = options(method, prm, batch);
-                let (_, seconds) = timed_on_awake_pool(&pool, || {
-                    std::hint::black_box(distances(&pairs, &o).expect("batch"))
+                let o = sweep_options(method, prm, batch);
+                let (_, seconds) = timed_on_awake_pool(pool, || {
+                    std::hint::black_box(distances(pairs, &o).expect("batch"))
                 });
                 times.push(seconds * 1e9 / n);
             }
             bar.inc(1);
         }
     }
+}
+
+/// The sweep's CSV (also printed) and its error-against-time plot.
+fn write_sweep(args: &KernelsArgs, settings: &[Setting], rows: Vec<SweepRow>) -> CliResult {
     let mut points = Vec::new();
     let mut csv = String::from("sweep,iterations,penalty,tol,batch,finish_rounds,penalty_ns,hybrid_ns,max_err_over_L,median_err_over_L,certified_rate,fallback_rate,hybrid_max_err_over_L,time_statistic\n");
+    let stat = args.statistic;
     for (&(sweep, prm, batch), row) in settings.iter().zip(rows) {
-        let stat = args.statistic;
         let (pen_ns, hyb_ns) = (stat.of(row.pen_ns), stat.of(row.hyb_ns));
         csv.push_str(&format!(
             "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e},{}\n",
@@ -444,7 +511,6 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
             label: label(sweep, &prm, batch),
         });
     }
-    bar.finish_and_clear();
     let dir = &args.output;
     let csv_path = dir.join("kernels-accuracy.csv");
     std::fs::write(&csv_path, &csv)

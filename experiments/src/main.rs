@@ -13,6 +13,7 @@ mod partition_cmd;
 mod plot;
 mod run_cmd;
 mod run_mpi;
+mod run_summary;
 mod scaling_cmd;
 mod sections;
 mod stats;

@@ -79,55 +79,15 @@ pub fn run(args: &PartitionArgs) -> CliResult {
         };
         spec.advance(&mut local, t);
         if step % args.every == 0 {
-            let imbalance_before = imbalance(&world, &local);
-            world.barrier();
-            let start = Instant::now();
-            let owners = part
-                .partition(&world, &local.items)
-                .map_err(|e| CliError::runtime(e.to_string()))?;
-            let partition_s = start.elapsed().as_secs_f64();
-            let start = Instant::now();
-            let (moved, mstats) = migrate(&world, std::mem::take(&mut local), &owners);
-            local = moved;
-            let migrate_s = start.elapsed().as_secs_f64();
-            let (ghosts, overlap) = ghost_overlap(&world, part.as_ref(), &local, halo)?;
-            let m = collect(
-                &world,
-                step,
-                part.name(),
-                &local,
-                partition_s,
-                migrate_s,
-                &mstats,
-                &ghosts,
-            );
-            let queries_per_s = box_query_rate(&world, part.as_ref(), &local, halo)?;
+            let measured = partition_step(&world, part.as_mut(), &mut local, step, halo)?;
             if me == 0 {
-                // The step's metrics, plus what only this command knows.
-                let mut record = serde_json::to_value(&m).expect("metrics serialise");
-                let extra = serde_json::json!({
-                    "workload": workload_name(args), "imbalance_before": imbalance_before,
-                    "halo": halo, "box_queries_per_s": queries_per_s,
-                    "ghost_exchange_s": overlap.exchange_s, "owned_pairs_s": overlap.work_s,
-                    "overlapped_s": overlap.overlapped_s, "owned_pairs": overlap.pairs,
-                });
-                if let (Some(r), Some(e)) = (record.as_object_mut(), extra.as_object()) {
-                    r.extend(e.clone());
-                }
-                if args.json {
-                    match &bar {
-                        Some(b) => b.suspend(|| println!("{record}")),
-                        None => println!("{record}"),
-                    }
-                } else {
-                    let line = format_row(&m, imbalance_before, &overlap);
-                    match &bar {
-                        Some(b) => b.suspend(|| println!("{line}")),
-                        None => println!("{line}"),
-                    }
+                let line = report_line(args, &measured, halo);
+                match &bar {
+                    Some(b) => b.suspend(|| println!("{line}")),
+                    None => println!("{line}"),
                 }
             }
-            records.push((m, overlap));
+            records.push((measured.metrics, measured.overlap));
         }
         if let Some(b) = &bar {
             b.inc(1);
@@ -141,6 +101,73 @@ pub fn run(args: &PartitionArgs) -> CliResult {
         eprintln!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// What one partitioning step measured.
+struct Measured {
+    metrics: StepMetrics,
+    overlap: Overlap,
+    imbalance_before: f64,
+    queries_per_s: f64,
+}
+
+/// One partitioning step: partition, migrate, exchange ghosts (alone and
+/// overlapped), query boxes; each timed.
+fn partition_step(
+    world: &mpi::topology::SimpleCommunicator,
+    part: &mut dyn partition::Partitioner,
+    local: &mut partition::LocalItems,
+    step: usize,
+    halo: f64,
+) -> CliResult<Measured> {
+    let imbalance_before = imbalance(world, local);
+    world.barrier();
+    let start = Instant::now();
+    let owners = part
+        .partition(world, &local.items)
+        .map_err(|e| CliError::runtime(e.to_string()))?;
+    let partition_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let (moved, mstats) = migrate(world, std::mem::take(local), &owners);
+    *local = moved;
+    let migrate_s = start.elapsed().as_secs_f64();
+    let (ghosts, overlap) = ghost_overlap(world, part, local, halo)?;
+    let metrics = collect(
+        world,
+        step,
+        part.name(),
+        local,
+        partition_s,
+        migrate_s,
+        &mstats,
+        &ghosts,
+    );
+    let queries_per_s = box_query_rate(world, part, local, halo)?;
+    Ok(Measured {
+        metrics,
+        overlap,
+        imbalance_before,
+        queries_per_s,
+    })
+}
+
+/// A step's line: a JSON object (the metrics, plus what only this command
+/// knows) with `--json`, else a row of the table.
+fn report_line(args: &PartitionArgs, m: &Measured, halo: f64) -> String {
+    if !args.json {
+        return format_row(&m.metrics, m.imbalance_before, &m.overlap);
+    }
+    let mut record = serde_json::to_value(&m.metrics).expect("metrics serialise");
+    let extra = serde_json::json!({
+        "workload": workload_name(args), "imbalance_before": m.imbalance_before,
+        "halo": halo, "box_queries_per_s": m.queries_per_s,
+        "ghost_exchange_s": m.overlap.exchange_s, "owned_pairs_s": m.overlap.work_s,
+        "overlapped_s": m.overlap.overlapped_s, "owned_pairs": m.overlap.pairs,
+    });
+    if let (Some(r), Some(e)) = (record.as_object_mut(), extra.as_object()) {
+        r.extend(e.clone());
+    }
+    record.to_string()
 }
 
 /// The ghost exchange timed alone, the owned items' contact candidates

@@ -3,7 +3,7 @@
 use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
-use crate::sections::{label, section_rows};
+use crate::run_summary::{RunSummary, RunTimes};
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -13,254 +13,277 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub fn run(args: &RunArgs) -> CliResult {
-    let universe =
-        mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
-    let comm = universe.world();
-    if mpi::traits::Communicator::size(&comm) > 1 {
-        return crate::run_mpi::run(args, &comm);
+    // A singleton MPI start costs seconds (Open MPI starts its runtime
+    // daemon) and gives one rank: a run not started by a launcher goes
+    // without MPI.
+    let universe = if launched_by_mpi() {
+        Some(mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?)
+    } else {
+        None
+    };
+    if let Some(comm) = universe.as_ref().map(|u| u.world()) {
+        if mpi::traits::Communicator::size(&comm) > 1 {
+            return crate::run_mpi::run(args, &comm);
+        }
     }
     refuse_resume_without_output(args)?;
-    let scene = Scene::load_with(&args.scene, &args.overrides)
-        .map_err(|e| CliError::input(e.to_string()))?;
-    for w in &scene.warnings {
-        eprintln!("tridem: warning: {w}");
-    }
+    let scene = load_scene(args)?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
     let (mut sim, first) = crate::run_mpi::start(args, &scene)?;
+    let steps = steps_to_run(args, &scene, first)?;
+    let mut files = RunFiles::open(args, &sim)?;
+    announce(args, &scene, &sim, steps);
+    files.write_first(&sim)?;
+    let stop = stop_on_signals()?;
+    let start = Instant::now();
+    if let Some(s) = step_loop(args, &scene, &mut sim, steps, &mut files, &stop)? {
+        return Err(files.stopped(&sim, s, steps));
+    }
+    files.write_last_checkpoint(&sim, steps == 0 || sim.world.step % scene.output_every != 0)?;
+    let times = RunTimes {
+        seconds: start.elapsed().as_secs_f64(),
+        checkpoint_seconds: files.checkpoint_seconds,
+    };
+    warn_fallen(&scene, &sim);
+    warn_deep_contacts(&sim);
+    let summary = RunSummary::of(
+        &args.scene,
+        &sim,
+        first,
+        steps,
+        times,
+        args.output.as_deref(),
+    );
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string(&summary).expect("a summary is plain data")
+        );
+    } else {
+        summary.print();
+    }
+    Ok(())
+}
+
+/// The scene with `--set` over it, its warnings printed.
+fn load_scene(args: &RunArgs) -> CliResult<Scene> {
+    let scene = Scene::load_with(&args.scene, &args.overrides)
+        .map_err(|e| CliError::input(e.to_string()))?;
+    for w in &scene.warnings {
+        eprintln!("tridem: warning: {w}");
+    }
+    Ok(scene)
+}
+
+/// `--steps`, or what is left to the scene's end from step `first`.
+pub(crate) fn steps_to_run(args: &RunArgs, scene: &Scene, first: u64) -> CliResult<u64> {
     let last = (scene.end_time / scene.dt).round() as u64;
-    let steps = match args.steps {
-        Some(n) => n,
-        None if args.resume.is_none() || first < last => last.saturating_sub(first),
-        None => {
-            return Err(CliError::input(format!(
-                "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
-                 nothing left to run (--steps N runs N more)",
-                scene.end_time
-            )))
-        }
-    };
-    // Resumed into the directory it was written to, the output goes on in the
-    // same file; a fresh run starts its own.
-    let (mut out, write_first, _lock) = match &args.output {
-        Some(dir) => {
-            let (o, first, lock) =
-                crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, &sim)?;
-            (Some(o), first, Some(lock))
-        }
-        None => (None, false, None),
-    };
-    let checkpoint_path = args.output.as_ref().map(|d| d.join("checkpoint.h5"));
+    match args.steps {
+        Some(n) => Ok(n),
+        None if args.resume.is_none() || first < last => Ok(last.saturating_sub(first)),
+        None => Err(CliError::input(format!(
+            "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
+             nothing left to run (--steps N runs N more)",
+            scene.end_time
+        ))),
+    }
+}
+
+/// What the run is, on one line of standard error.
+fn announce(args: &RunArgs, scene: &Scene, sim: &Simulation, steps: u64) {
     eprintln!(
-        "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps, {} threads",
+        "{}, {} threads",
+        describe(args, scene, sim, steps),
+        rayon::current_num_threads()
+    );
+}
+
+/// The scene, its bodies and effects, the step and the steps to run.
+pub(crate) fn describe(args: &RunArgs, scene: &Scene, sim: &Simulation, steps: u64) -> String {
+    let w = &sim.world;
+    format!(
+        "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps",
         args.scene.display(),
-        sim.world.dynamic_count(),
-        sim.world.particle_triangles(),
-        sim.world.bodies.len() - sim.world.dynamic_count(),
+        w.dynamic_count(),
+        w.particle_triangles(),
+        w.bodies.len() - w.dynamic_count(),
         sim.effect_names().join(", "),
         scene.dt,
-        scene.stable_dt.map_or(String::new(), |h| format!(" (stable: {h:.3e} s)")),
-        rayon::current_num_threads(),
-    );
-    if let Some(o) = out.as_mut().filter(|_| write_first) {
-        o.write_step(&sim)?;
+        scene
+            .stable_dt
+            .map_or(String::new(), |h| format!(" (stable: {h:.3e} s)")),
+    )
+}
+
+/// A run's files: its output (`DIR/run.h5`, locked while the run writes)
+/// and its checkpoint, or nothing without `--output`.
+struct RunFiles {
+    out: Option<crate::output::Output>,
+    write_first: bool,
+    checkpoint: Option<std::path::PathBuf>,
+    checkpoint_seconds: f64,
+    _lock: Option<crate::output::DirLock>,
+}
+
+impl RunFiles {
+    /// Resumed into the directory it was written to, the output goes on in
+    /// the same file; a fresh run starts its own.
+    fn open(args: &RunArgs, sim: &Simulation) -> CliResult<RunFiles> {
+        let Some(dir) = &args.output else {
+            return Ok(RunFiles {
+                out: None,
+                write_first: false,
+                checkpoint: None,
+                checkpoint_seconds: 0.0,
+                _lock: None,
+            });
+        };
+        let (out, write_first, lock) =
+            crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, sim)?;
+        Ok(RunFiles {
+            out: Some(out),
+            write_first,
+            checkpoint: Some(dir.join("checkpoint.h5")),
+            checkpoint_seconds: 0.0,
+            _lock: Some(lock),
+        })
     }
-    let bar = ProgressBar::new(steps).with_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed} eta {eta}")
-            .expect("template")
-            .progress_chars("=> "),
-    );
-    if args.quiet {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+
+    /// The initial state, when the output starts with this run.
+    fn write_first(&mut self, sim: &Simulation) -> CliResult {
+        match self.out.as_mut().filter(|_| self.write_first) {
+            Some(o) => o.write_step(sim),
+            None => Ok(()),
+        }
     }
-    // SIGTERM (a batch system's time limit or preemption) or Ctrl-C ends the
-    // run after the step under way, with a checkpoint; a second one at once.
-    let stop = stop_on_signals()?;
-    let mut checkpoint_secs = 0.0;
-    let start = Instant::now();
-    // The whole loop runs on a worker of the pool, so that parallel sections
-    // start from inside it, and the other workers poll instead of sleeping
-    // between sections (see dem::busy_workers; measured on the hopper: waking
-    // threads took 25-40% of a run on a 2-core machine).
+
+    /// An output step: the state, then the checkpoint that goes with it.
+    fn write_output_step(&mut self, sim: &Simulation) -> CliResult {
+        if let Some(o) = &mut self.out {
+            o.write_step(sim)?;
+            self.write_checkpoint(sim)?;
+        }
+        Ok(())
+    }
+
+    fn write_checkpoint(&mut self, sim: &Simulation) -> CliResult {
+        if let Some(c) = &self.checkpoint {
+            let start = Instant::now();
+            checkpoint_file::write(c, &sim.checkpoint())?;
+            self.checkpoint_seconds += start.elapsed().as_secs_f64();
+        }
+        Ok(())
+    }
+
+    /// So that a run that ended between output steps can be taken further.
+    fn write_last_checkpoint(&mut self, sim: &Simulation, between_outputs: bool) -> CliResult {
+        match between_outputs {
+            true => self.write_checkpoint(sim),
+            false => Ok(()),
+        }
+    }
+
+    /// A run stopped by a signal after `s` of `steps` steps: its checkpoint
+    /// written, the error that says how to go on.
+    fn stopped(&mut self, sim: &Simulation, s: u64, steps: u64) -> CliError {
+        let resume = match self.write_checkpoint(sim) {
+            Err(e) => return e,
+            Ok(()) => match &self.checkpoint {
+                Some(c) => format!("its state is in {}: go on with --resume", c.display()),
+                None => "no checkpoint without --output".into(),
+            },
+        };
+        CliError::runtime(format!(
+            "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
+            sim.world.step, sim.world.time
+        ))
+    }
+}
+
+/// The steps, with their checks, output and progress bar: `Some(s)` when a
+/// signal stopped the run after step `s`.
+///
+/// The whole loop runs on a worker of the pool, so that parallel sections
+/// start from inside it, and the other workers poll instead of sleeping
+/// between sections (see dem::busy_workers; measured on the hopper: waking
+/// threads took 25-40% of a run on a 2-core machine).
+fn step_loop(
+    args: &RunArgs,
+    scene: &Scene,
+    sim: &mut Simulation,
+    steps: u64,
+    files: &mut RunFiles,
+    stop: &AtomicBool,
+) -> CliResult<Option<u64>> {
+    let bar = progress_bar(steps, args.quiet);
     let mut deep_steps = 0;
-    let looped: CliResult<Option<u64>> = dem::busy_workers::with_busy_workers(|| {
+    let looped = dem::busy_workers::with_busy_workers(|| {
         for s in 1..=steps {
             sim.step();
-            deep_steps = if sim.last_stats().detection.deep_contacts > 0 {
-                deep_steps + 1
-            } else {
-                0
+            deep_steps = match sim.last_stats().detection.deep_contacts {
+                0 => 0,
+                _ => deep_steps + 1,
             };
-            if let Err(e) = refuse_lasting_crossings(&scene, &sim, deep_steps) {
-                bar.abandon();
-                return Err(e);
-            }
-            if sim.world.bodies.iter().any(|b| {
-                !(b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite())
-            }) {
-                bar.abandon();
-                return Err(CliError::runtime(format!(
-                    "the simulation became non-finite at step {s} (t = {:e} s): the time step is too large for this scene",
-                    sim.world.time
-                )));
-            }
+            refuse_lasting_crossings(scene, sim, deep_steps)?;
+            refuse_non_finite_state(sim, s)?;
             // Output steps count from the start of the run, resumed or not.
-            if sim.world.step % scene.output_every == 0 {
-                if let (Some(o), Some(c)) = (&mut out, &checkpoint_path) {
-                    o.write_step(&sim)?;
-                    let start = Instant::now();
-                    checkpoint_file::write(c, &sim.checkpoint())?;
-                    checkpoint_secs += start.elapsed().as_secs_f64();
-                }
+            if sim.world.step.is_multiple_of(scene.output_every) {
+                files.write_output_step(sim)?;
             }
             if s % 64 == 0 || s == steps {
                 bar.set_position(s);
             }
             if stop.load(Ordering::Relaxed) {
-                bar.abandon();
                 return Ok(Some(s));
             }
         }
         Ok(None)
     });
-    if let Some(s) = looped? {
-        let resume = match &checkpoint_path {
-            Some(c) => {
-                checkpoint_file::write(c, &sim.checkpoint())?;
-                format!("its state is in {}: go on with --resume", c.display())
-            }
-            None => "no checkpoint without --output".into(),
-        };
-        return Err(CliError::runtime(format!(
-            "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
-            sim.world.step, sim.world.time
-        )));
+    match looped {
+        Ok(None) => bar.finish_and_clear(),
+        _ => bar.abandon(),
     }
-    bar.finish_and_clear();
-    // So that a run that ended between output steps can be taken further.
-    if let Some(c) = checkpoint_path.as_ref() {
-        if steps == 0 || sim.world.step % scene.output_every != 0 {
-            let start = Instant::now();
-            checkpoint_file::write(c, &sim.checkpoint())?;
-            checkpoint_secs += start.elapsed().as_secs_f64();
-        }
-    }
-    let secs = start.elapsed().as_secs_f64();
-    warn_fallen(&scene, &sim);
-    if sim.totals.detection.deep_contacts > 0 {
-        eprintln!(
-            "tridem: warning: {} contacts went deeper than the particles' halos (triangles crossed); \
-             raise the stiffness or the halo, or lower the impact speed",
-            sim.totals.detection.deep_contacts
-        );
-    }
-    let n = sim.world.dynamic_count() as f64;
-    let t = &sim.totals;
-    let dynamic: Vec<_> = sim.world.bodies.iter().filter(|b| !b.is_static()).collect();
-    let com = dynamic.iter().map(|b| b.x * b.mass).sum::<glam::DVec3>()
-        / dynamic.iter().map(|b| b.mass).sum::<f64>();
-    let lowest = dynamic.iter().map(|b| b.x.z).fold(f64::INFINITY, f64::min);
-    let highest = dynamic
-        .iter()
-        .map(|b| b.x.z)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let sections = section_rows(&sim.timings);
-    let stepping = sim.timings.total();
-    let mut section_json = serde_json::Map::new();
-    for r in &sections {
-        section_json.insert(r.key(), r.seconds.into());
-    }
-    // Output, the finiteness check and the progress bar.
-    section_json.insert("checkpoints".into(), checkpoint_secs.into());
-    section_json.insert(
-        "other".into(),
-        (secs - stepping - checkpoint_secs).max(0.0).into(),
-    );
-    let summary = serde_json::json!({
-        "centre_of_mass": [com.x, com.y, com.z],
-        "lowest_z": lowest,
-        "highest_z": highest,
-        "scene": args.scene.display().to_string(),
-        "steps": steps,
-        "first_step": first,
-        "last_step": sim.world.step,
-        "particles": sim.world.dynamic_count(),
-        "threads": rayon::current_num_threads(),
-        "seconds": secs,
-        "steps_per_second": steps as f64 / secs,
-        "seconds_per_particle_step": secs / (steps as f64 * n),
-        "broad_phases": t.detection.broad_phases,
-        "body_pairs_checked": t.detection.body_pairs,
-        "triangle_pairs_checked": t.detection.triangle_pairs,
-        "fallback_rate": if t.detection.triangle_pairs > 0 { t.detection.fallback_pairs as f64 / t.detection.triangle_pairs as f64 } else { 0.0 },
-        "task_fallback_rate": task_fallback_rate(&t.detection),
-        "contacts": t.detection.contacts,
-        "deep_contacts": t.detection.deep_contacts,
-        "tangential_evaluations": t.tangential_evaluations,
-        "kinetic_energy": sim.world.kinetic_energy(),
-        "stepping_seconds": stepping,
-        "narrow_phase_busy_thread_seconds": sim.timings.detection.narrow_phase_busy,
-        "section_seconds": section_json,
-    });
-    if args.json {
-        println!("{summary}");
-    } else {
-        println!(
-            "steps                  {steps} in {secs:.2} s ({:.0} steps/s)",
-            steps as f64 / secs
-        );
-        println!("cost per particle-step {:.3e} s", secs / (steps as f64 * n));
-        println!("broad phases           {}", t.detection.broad_phases);
-        println!("body pairs checked     {}", t.detection.body_pairs);
-        println!("triangle pairs checked {}", t.detection.triangle_pairs);
-        println!(
-            "kernel fallback rate   {:.1}%",
-            100.0 * summary["fallback_rate"].as_f64().unwrap_or(0.0)
-        );
-        println!("contacts (sum)         {}", t.detection.contacts);
-        println!("tangential evaluations {}", t.tangential_evaluations);
-        println!("deep contacts          {}", t.detection.deep_contacts);
-        println!(
-            "particles' z           {lowest:.4} .. {highest:.4} (centre of mass {:.4})",
-            com.z
-        );
-        println!("time by section        seconds  share");
-        let mut rows: Vec<(String, f64)> = sections.iter().map(|r| (label(r), r.seconds)).collect();
-        rows.push(("checkpoints".into(), checkpoint_secs));
-        rows.push((
-            "output and checks".into(),
-            (secs - stepping - checkpoint_secs).max(0.0),
-        ));
-        for (name, s) in rows {
-            println!("  {name:<20} {s:>8.3}  {:>4.1}%", 100.0 * s / secs);
-        }
-        if let Some(dir) = &args.output {
-            println!(
-                "output                 {}/run.h5 (open {}/run.xmf in ParaView)",
-                dir.display(),
-                dir.display()
-            );
-            println!(
-                "checkpoint             {}/checkpoint.h5 (step {}; go on with --resume)",
-                dir.display(),
-                sim.world.step
-            );
-        }
-    }
-    Ok(())
+    looped
 }
 
-/// The fallback rate of the least and the most falling-back detection task,
-/// averaged over passes: whole-batch fallback makes it depend on how pairs
-/// are cut into tasks, and so on the threads.
-fn task_fallback_rate(d: &dem::contact::DetectionStats) -> serde_json::Value {
-    let n = d.passes_with_pairs.max(1) as f64;
-    serde_json::json!({
-        "least": d.task_fallback_min / n,
-        "most": d.task_fallback_max / n,
-    })
+pub(crate) fn progress_bar(steps: u64, quiet: bool) -> ProgressBar {
+    let bar = ProgressBar::new(steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed} eta {eta}")
+            .expect("template")
+            .progress_chars("=> "),
+    );
+    if quiet {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar
+}
+
+/// Every state variable of every body must stay finite.
+fn refuse_non_finite_state(sim: &Simulation, s: u64) -> CliResult {
+    let finite = |b: &dem::body::Body| {
+        b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite()
+    };
+    if sim.world.bodies.iter().all(finite) {
+        return Ok(());
+    }
+    Err(CliError::runtime(format!(
+        "the simulation became non-finite at step {s} (t = {:e} s): \
+         the time step is too large for this scene",
+        sim.world.time
+    )))
+}
+
+fn warn_deep_contacts(sim: &Simulation) {
+    let deep = sim.totals.detection.deep_contacts;
+    if deep > 0 {
+        eprintln!(
+            "tridem: warning: {deep} contacts went deeper than the particles' halos \
+             (triangles crossed); raise the stiffness or the halo, or lower the impact speed"
+        );
+    }
 }
 
 /// Resuming continues a run's output: without a directory to write to, a
@@ -274,6 +297,15 @@ pub(crate) fn refuse_resume_without_output(args: &RunArgs) -> CliResult {
         ))),
         _ => Ok(()),
     }
+}
+
+/// Whether an MPI launcher started this process: mpirun (Open MPI, its
+/// PRRTE runtime, MPICH's Hydra) and srun with a PMI or PMIx plugin all set
+/// one of these.
+fn launched_by_mpi() -> bool {
+    ["OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some())
 }
 
 /// Steps in a row with contacts deeper than the halos after which a run
@@ -305,6 +337,30 @@ pub(crate) fn refuse_crossings(scene: &Scene, sim: &Simulation, when: &str) -> C
     )))
 }
 
+/// A new run is refused when bodies start crossing, or when one starts
+/// wholly inside another (no contact sees that: their surfaces need not
+/// meet), unless the scene sets `simulation.allow_deep_contacts`.
+pub(crate) fn refuse_overlaps_at_start(scene: &Scene, sim: &Simulation) -> CliResult {
+    refuse_crossings(scene, sim, "at the start")?;
+    if scene.allow_deep_contacts {
+        return Ok(());
+    }
+    let enclosed = sim.world.enclosed_pairs();
+    let Some(&(inner, outer)) = enclosed.first() else {
+        return Ok(());
+    };
+    Err(CliError::input(format!(
+        "{} lies wholly inside {} at the start{}: move it out; \
+         simulation.allow_deep_contacts = true lets the run go on",
+        scene.body_name(inner),
+        scene.body_name(outer),
+        match enclosed.len() {
+            1 => String::new(),
+            n => format!(", as do {} more pairs", n - 1),
+        }
+    )))
+}
+
 fn refuse_lasting_crossings(scene: &Scene, sim: &Simulation, deep_steps: u64) -> CliResult {
     if deep_steps < DEEP_STEPS {
         return Ok(());
@@ -320,7 +376,11 @@ fn refuse_lasting_crossings(scene: &Scene, sim: &Simulation, deep_steps: u64) ->
 /// fell through a wall (too fast for the step, or too soft a contact) or
 /// out of the scene, and what they do no longer means anything.
 pub(crate) fn warn_fallen(scene: &Scene, sim: &Simulation) {
-    let Some(down) = scene.effects.gravity.and_then(|g| g.try_normalize()) else {
+    let Some(down) = scene
+        .effects
+        .get::<dem::effects::GravityParams>()
+        .and_then(|g| g.g().try_normalize())
+    else {
         return;
     };
     let w = &sim.world;

@@ -10,13 +10,12 @@ use dem::scene::Scene;
 use dem::simulation::Simulation;
 use distributed::metrics::{imbalance, json_line};
 use distributed::{DistributedSimulation, Exchange, Settings, StepMetrics};
-use indicatif::{ProgressBar, ProgressStyle};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use partition::comm::all_gather_v;
 use std::io::Write;
-use std::sync::atomic::Ordering;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Every rank's outcome agreed on (collective): `Ok` on every rank, or an
@@ -66,7 +65,10 @@ fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
         partitioner,
         repartition_every: (every > 0).then_some(every),
         exchange,
-        skin: scene.effects.contact_skin,
+        skin: scene
+            .effects
+            .get::<dem::effects::ContactParams>()
+            .map_or(0.0, |c| c.skin),
     })
 }
 
@@ -81,7 +83,6 @@ struct Writer {
 
 pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let me = comm.rank();
-    let size = comm.size();
     // A batch system's time limit signals every rank; each stops after the
     // step under way, and all agree on it within that step. Handled from
     // the start, so that no signal finds a rank without its handler.
@@ -106,21 +107,8 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             .build_global()
             .map_err(|e| CliError::runtime(e.to_string())),
     )?;
-    let started = agree(comm, start(args, &scene))?;
-    let (sim, first) = started;
-    let last = (scene.end_time / scene.dt).round() as u64;
-    let steps = match args.steps {
-        Some(n) => n,
-        None if args.resume.is_none() || first < last => last.saturating_sub(first),
-        None => {
-            let e = CliError::input(format!(
-                "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
-                 nothing left to run (--steps N runs N more)",
-                scene.end_time
-            ));
-            return agree(comm, Err(e));
-        }
-    };
+    let (sim, first) = agree(comm, start(args, &scene))?;
+    let steps = agree(comm, crate::run_cmd::steps_to_run(args, &scene, first))?;
     // Only rank 0 touches the disk; the others learn whether it could.
     let writer = if me == 0 {
         open_writer(args, &sim)
@@ -129,74 +117,26 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     };
     let mut writer = agree(comm, writer)?;
     if me == 0 {
-        eprintln!(
-            "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s, {steps} steps, \
-             {size} ranks x {threads} threads, {}, {} exchange, repartition {}",
-            args.scene.display(),
-            sim.world.dynamic_count(),
-            sim.world.particle_triangles(),
-            sim.world.bodies.len() - sim.world.dynamic_count(),
-            sim.effect_names().join(", "),
-            scene.dt,
-            settings.partitioner.name(),
-            settings.exchange.name(),
-            settings
-                .repartition_every
-                .map_or("at the start only".into(), |k| format!("every {k} steps")),
-        );
+        announce(args, &scene, &sim, &settings, steps, comm.size(), threads);
     }
     let n_particles = sim.world.dynamic_count();
     let mut dist = agree(
         comm,
         DistributedSimulation::new(comm, &scene, sim, settings).map_err(CliError::runtime),
     )?;
-    let bar = ProgressBar::new(steps).with_style(
-        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {elapsed} eta {eta}")
-            .expect("template")
-            .progress_chars("=> "),
-    );
-    if args.quiet || me != 0 {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
     let mut totals = StepMetrics::default();
-    let mut interval = StepMetrics::default();
     let start = Instant::now();
-    let mut stopped_at = None;
-    for s in 1..=steps {
-        let stopping = dist
-            .step(stop.load(Ordering::Relaxed))
-            .map_err(CliError::runtime);
-        let stopping = agree(comm, stopping)?;
-        if dist.deep_steps_in_a_row() >= crate::run_cmd::DEEP_STEPS && !scene.allow_deep_contacts {
-            bar.abandon();
-            let e = CliError::runtime(format!(
-                "contacts stayed deeper than the halos for {} steps in a row (step {}, t = {:e} s); \
-                 the run stops: raise the stiffness or the halo, or lower dt or the speed; \
-                 simulation.allow_deep_contacts = true lets the run go on",
-                crate::run_cmd::DEEP_STEPS,
-                dist.world.step,
-                dist.world.time
-            ));
-            return agree(comm, Err(e));
-        }
-        totals.accumulate(dist.metrics());
-        interval.extend_interval(dist.metrics());
-        if s % args.metrics_every == 0 || s == steps {
-            write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut())?;
-        }
-        if dist.world.step % scene.output_every == 0 || stopping {
-            agree(comm, write_state(&scene, &dist, writer.as_mut(), true))?;
-        }
-        if s % 16 == 0 || s == steps {
-            bar.set_position(s);
-        }
-        if stopping {
-            stopped_at = Some(s);
-            break;
-        }
-    }
-    if let Some(s) = stopped_at {
-        bar.abandon();
+    let ended = step_loop(
+        comm,
+        args,
+        &scene,
+        &mut dist,
+        steps,
+        &mut writer,
+        &mut totals,
+        &stop,
+    )?;
+    if let Some(s) = ended {
         let resume = match writer.as_ref().and_then(|w| w.checkpoint.as_ref()) {
             Some(c) => format!("its state is in {}: go on with --resume", c.display()),
             None => "no checkpoint without --output".into(),
@@ -211,8 +151,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             CliError::reported_elsewhere(1)
         });
     }
-    bar.finish_and_clear();
-    if steps > 0 && dist.world.step % scene.output_every != 0 {
+    if steps > 0 && !dist.world.step.is_multiple_of(scene.output_every) {
         agree(comm, write_state(&scene, &dist, writer.as_mut(), false))?;
     }
     let secs = start.elapsed().as_secs_f64();
@@ -220,15 +159,94 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     Ok(())
 }
 
-/// The simulation every rank starts from: new, or resumed from a checkpoint
-/// (read by every rank), and its first step.
+/// What the run is, on one line of rank 0's standard error.
+fn announce(
+    args: &RunArgs,
+    scene: &Scene,
+    sim: &Simulation,
+    settings: &Settings,
+    steps: u64,
+    ranks: i32,
+    threads: usize,
+) {
+    eprintln!(
+        "{}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}",
+        crate::run_cmd::describe(args, scene, sim, steps),
+        settings.partitioner.name(),
+        settings.exchange.name(),
+        settings
+            .repartition_every
+            .map_or("at the start only".into(), |k| format!("every {k} steps")),
+    );
+}
+
+/// The steps on every rank, with their metrics, output and progress bar
+/// (rank 0's): `Some(s)` when a signal stopped the run after step `s`.
+#[allow(clippy::too_many_arguments)]
+fn step_loop(
+    comm: &SimpleCommunicator,
+    args: &RunArgs,
+    scene: &Scene,
+    dist: &mut DistributedSimulation,
+    steps: u64,
+    writer: &mut Option<Writer>,
+    totals: &mut StepMetrics,
+    stop: &AtomicBool,
+) -> CliResult<Option<u64>> {
+    let bar = crate::run_cmd::progress_bar(steps, args.quiet || comm.rank() != 0);
+    let mut interval = StepMetrics::default();
+    for s in 1..=steps {
+        let stopping = dist
+            .step(stop.load(Ordering::Relaxed))
+            .map_err(CliError::runtime);
+        let stopping = agree(comm, stopping)?;
+        if let Err(e) = refuse_lasting_crossings(scene, dist) {
+            bar.abandon();
+            return agree(comm, Err(e));
+        }
+        totals.accumulate(dist.metrics());
+        interval.extend_interval(dist.metrics());
+        if s % args.metrics_every == 0 || s == steps {
+            write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut())?;
+        }
+        if dist.world.step.is_multiple_of(scene.output_every) || stopping {
+            agree(comm, write_state(scene, dist, writer.as_mut(), true))?;
+        }
+        if s % 16 == 0 || s == steps {
+            bar.set_position(s);
+        }
+        if stopping {
+            bar.abandon();
+            return Ok(Some(s));
+        }
+    }
+    bar.finish_and_clear();
+    Ok(None)
+}
+
+/// Contacts deeper than the halos for DEEP_STEPS steps in a row on any
+/// rank stop the run, unless the scene allows them.
+fn refuse_lasting_crossings(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
+    if dist.deep_steps_in_a_row() < crate::run_cmd::DEEP_STEPS || scene.allow_deep_contacts {
+        return Ok(());
+    }
+    Err(CliError::runtime(format!(
+        "contacts stayed deeper than the halos for {} steps in a row (step {}, t = {:e} s); \
+         the run stops: raise the stiffness or the halo, or lower dt or the speed; \
+         simulation.allow_deep_contacts = true lets the run go on",
+        crate::run_cmd::DEEP_STEPS,
+        dist.world.step,
+        dist.world.time
+    )))
+}
+
 /// The run's simulation, new (refused when bodies cross at the start) or
 /// resumed from a checkpoint, and its first step.
 pub(crate) fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
     match &args.resume {
         None => {
             let sim = Simulation::new(scene);
-            crate::run_cmd::refuse_crossings(scene, &sim, "at the start")?;
+            crate::run_cmd::refuse_overlaps_at_start(scene, &sim)?;
             Ok((sim, 0))
         }
         Some(file) => {
@@ -421,15 +439,6 @@ fn summary(
         );
     }
     if let Some(dir) = &args.output {
-        println!(
-            "output                 {}/run.h5 (open {}/run.xmf in ParaView)",
-            dir.display(),
-            dir.display()
-        );
-        println!(
-            "checkpoint             {}/checkpoint.h5 (step {}; go on with --resume)",
-            dir.display(),
-            dist.world.step
-        );
+        crate::run_summary::print_output_lines(dir, dist.world.step);
     }
 }

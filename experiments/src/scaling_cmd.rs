@@ -1,11 +1,11 @@
 //! `tridem scaling SCENE`: the thread scaling of a DEM run, measured side by
 //! side. Rounds alternate between the thread counts, so that a slow minute of
 //! a noisy machine hits every count alike; the speed-up is the ratio of the
-//! medians (or, with `--statistic min`, of the fastest runs). Each run starts from the scene's initial state, and the final
-//! states are compared: a run's result must not depend on its thread count.
+//! medians (or, with `--statistic min`, of the fastest runs). Each run
+//! starts from the scene's initial state, and the final states are compared: a run's result must not depend on its thread count.
 //!
 //! On a shared machine the speed-up two cores deliver swings from minute to
-//! minute (on the development VM, the distance kernel alone on 2 threads
+//! minute (on a 2-core cloud machine, the distance kernel alone on 2 threads
 //! measured 1.61x and 1.97x over one in consecutive runs). So next to each
 //! run, the same pool times a reference workload with no shared data and no
 //! synchronisation: each thread runs the scene's distance kernel on a small
@@ -23,6 +23,7 @@ use dem::scene::Scene;
 use dem::simulation::Simulation;
 use dem::timing::SectionTimes;
 use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
 use std::time::Instant;
 
 /// What one run leaves behind: its wall time, where it went, and the bodies'
@@ -59,135 +60,176 @@ pub fn run(args: &ScalingArgs) -> CliResult {
                 .map_err(|e| CliError::runtime(e.to_string()))
         })
         .collect::<CliResult<Vec<_>>>()?;
-    let mut workload = Reference::new(args.reference_pairs, &scene);
+    let reference = Reference::new(args.reference_pairs, &scene);
+    let measured = measure(args, &scene, steps, &pools, reference.as_ref());
+    let rows = scaling_rows(args, &scene, steps, &measured, reference.as_ref());
+    if args.json {
+        for r in &rows {
+            println!("{}", serde_json::to_string(r).expect("a row is plain data"));
+        }
+        return Ok(());
+    }
+    let sections = section_rows(&measured[0].runs[0].sections);
+    print_report(args, &scene, steps, &rows, &sections, reference.as_ref());
+    Ok(())
+}
+
+/// What one thread count measured: its runs and, after each, the reference.
+struct Measured {
+    runs: Vec<RunResult>,
+    reference_seconds: Vec<f64>,
+}
+
+/// `--repeat` rounds, each a run (and the reference) per thread count in turn.
+fn measure(
+    args: &ScalingArgs,
+    scene: &Scene,
+    steps: u64,
+    pools: &[rayon::ThreadPool],
+    reference: Option<&Reference>,
+) -> Vec<Measured> {
     let bar = ProgressBar::new((args.repeat * pools.len()) as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed} eta {eta}")
             .expect("template")
             .progress_chars("=> "),
     );
-    let mut results: Vec<Vec<RunResult>> = pools.iter().map(|_| Vec::new()).collect();
-    let mut reference_runs: Vec<Vec<f64>> = pools.iter().map(|_| Vec::new()).collect();
+    let mut measured: Vec<Measured> = pools
+        .iter()
+        .map(|_| Measured {
+            runs: Vec::new(),
+            reference_seconds: Vec::new(),
+        })
+        .collect();
     for _ in 0..args.repeat {
-        for ((pool, runs), refs) in pools.iter().zip(&mut results).zip(&mut reference_runs) {
-            runs.push(pool.install(|| one_run(&scene, steps)));
-            if let Some(r) = workload.as_mut() {
-                refs.push(pool.install(|| r.seconds_per_pair()));
+        for (pool, m) in pools.iter().zip(&mut measured) {
+            m.runs.push(pool.install(|| one_run(scene, steps)));
+            if let Some(r) = reference {
+                m.reference_seconds
+                    .push(pool.install(|| r.seconds_per_pair()));
             }
             bar.inc(1);
         }
     }
     bar.finish_and_clear();
+    measured
+}
 
-    let particles = scene.world.dynamic_count() as f64;
-    let first_positions = &results[0][0].positions;
-    let identical = results
-        .iter()
-        .all(|runs| runs.iter().all(|r| &r.positions == first_positions));
+/// One thread count's line of the report (one JSON object with `--json`).
+#[derive(Debug, Serialize)]
+struct ScalingRow {
+    scene: String,
+    steps: u64,
+    threads: usize,
+    seconds: Vec<f64>,
+    statistic: &'static str,
+    median_seconds: f64,
+    min_seconds: f64,
+    seconds_per_particle_step: f64,
+    speedup: f64,
+    identical_results: bool,
+    section_seconds: serde_json::Map<String, serde_json::Value>,
+    /// The narrow phase's tasks' thread-seconds, and the threads' time in
+    /// the phase outside tasks (a late start, the wait for the last task).
+    narrow_phase_busy_thread_seconds: f64,
+    narrow_phase_idle_thread_seconds: f64,
+    reference_pairs_per_thread: Option<usize>,
+    reference_seconds_per_pair: Option<f64>,
+    reference_speedup: Option<f64>,
+    speedup_relative_to_reference: Option<f64>,
+    /// The run time by the statistic, and each section's.
+    #[serde(skip)]
+    time: f64,
+    #[serde(skip)]
+    sections: Vec<f64>,
+}
+
+/// Each thread count's statistics, speed-ups against the first count, and
+/// whether every run ended in the same state.
+fn scaling_rows(
+    args: &ScalingArgs,
+    scene: &Scene,
+    steps: u64,
+    measured: &[Measured],
+    reference: Option<&Reference>,
+) -> Vec<ScalingRow> {
     let stat = args.statistic;
-    let seconds = |runs: &[RunResult]| runs.iter().map(|r| r.seconds).collect::<Vec<_>>();
-    let medians: Vec<f64> = results.iter().map(|runs| median(seconds(runs))).collect();
-    let minima: Vec<f64> = results
+    let first_positions = &measured[0].runs[0].positions;
+    let identical = measured
         .iter()
-        .map(|runs| Statistic::Min.of(seconds(runs)))
-        .collect();
-    let times: Vec<f64> = results.iter().map(|runs| stat.of(seconds(runs))).collect();
-    // The reference workload's time per kernel call, per thread count, by
-    // the same statistic.
-    let reference_times: Option<Vec<f64>> = workload
-        .is_some()
-        .then(|| reference_runs.iter().map(|r| stat.of(r.clone())).collect());
-    // Per thread count, per section: the statistic over the runs.
-    let section_times: Vec<Vec<f64>> = results
-        .iter()
-        .map(|runs| {
-            let per_run: Vec<Vec<f64>> = runs
-                .iter()
-                .map(|r| {
-                    section_rows(&r.sections)
-                        .iter()
-                        .map(|s| s.seconds)
-                        .collect()
-                })
-                .collect();
-            (0..per_run[0].len())
-                .map(|k| stat.of(per_run.iter().map(|v| v[k]).collect()))
-                .collect()
-        })
-        .collect();
-    let section_names = section_rows(&results[0][0].sections);
-    // Per thread count: the narrow phase's tasks' thread-seconds, and the
-    // threads' time in the phase outside tasks (a late start, the wait for
-    // the last task), each by the statistic over the runs.
-    let narrow_busy_idle: Vec<(f64, f64)> = args
-        .threads
-        .iter()
-        .zip(&results)
-        .map(|(&t, runs)| {
-            let d = |r: &RunResult| r.sections.detection;
-            let busy = stat.of(runs.iter().map(|r| d(r).narrow_phase_busy).collect());
-            let idle = stat.of(runs
-                .iter()
-                .map(|r| t as f64 * d(r).narrow_phase - d(r).narrow_phase_busy)
-                .collect());
-            (busy, idle)
-        })
-        .collect();
-    let rows: Vec<serde_json::Value> = args
-        .threads
-        .iter()
-        .zip(&results)
-        .zip(medians.iter().zip(&minima).zip(&times))
-        .zip(section_times.iter().zip(&narrow_busy_idle))
-        .enumerate()
-        .map(|(k, (((&t, runs), ((&m, &min), &time)), (sections, &(busy, idle))))| {
-            let speedup = times[0] / time;
-            let (reference_seconds, reference_speedup, relative) = match &reference_times {
-                Some(r) => {
-                    let rs = r[0] / r[k];
-                    (
-                        serde_json::json!(r[k]),
-                        serde_json::json!(rs),
-                        serde_json::json!(speedup / rs),
-                    )
-                }
-                None => (
-                    serde_json::Value::Null,
-                    serde_json::Value::Null,
-                    serde_json::Value::Null,
-                ),
-            };
-            let by_section: serde_json::Map<String, serde_json::Value> = section_names
-                .iter()
-                .zip(sections)
-                .map(|(r, &s)| (r.key(), s.into()))
-                .collect();
-            serde_json::json!({
-                "scene": args.scene.display().to_string(),
-                "steps": steps,
-                "threads": t,
-                "seconds": runs.iter().map(|r| r.seconds).collect::<Vec<_>>(),
-                "statistic": stat.name(),
-                "median_seconds": m,
-                "min_seconds": min,
-                "seconds_per_particle_step": time / (steps as f64 * particles),
-                "speedup": speedup,
-                "identical_results": identical,
-                "section_seconds": by_section,
-                "narrow_phase_busy_thread_seconds": busy,
-                "narrow_phase_idle_thread_seconds": idle,
-                "reference_pairs_per_thread": workload.as_ref().map(Reference::pairs_per_thread),
-                "reference_seconds_per_pair": reference_seconds,
-                "reference_speedup": reference_speedup,
-                "speedup_relative_to_reference": relative,
+        .all(|m| m.runs.iter().all(|r| &r.positions == first_positions));
+    let particles = scene.world.dynamic_count() as f64;
+    let names = section_rows(&measured[0].runs[0].sections);
+    let mut rows: Vec<ScalingRow> = Vec::new();
+    for (&t, m) in args.threads.iter().zip(measured) {
+        let seconds: Vec<f64> = m.runs.iter().map(|r| r.seconds).collect();
+        let time = stat.of(seconds.clone());
+        let per_run: Vec<Vec<f64>> = m
+            .runs
+            .iter()
+            .map(|r| {
+                section_rows(&r.sections)
+                    .iter()
+                    .map(|s| s.seconds)
+                    .collect()
             })
-        })
-        .collect();
-    if args.json {
-        for r in &rows {
-            println!("{r}");
-        }
-        return Ok(());
+            .collect();
+        let sections: Vec<f64> = (0..names.len())
+            .map(|k| stat.of(per_run.iter().map(|v| v[k]).collect()))
+            .collect();
+        let d = |r: &RunResult| r.sections.detection;
+        let busy = stat.of(m.runs.iter().map(|r| d(r).narrow_phase_busy).collect());
+        let idle = stat.of(m
+            .runs
+            .iter()
+            .map(|r| t as f64 * d(r).narrow_phase - d(r).narrow_phase_busy)
+            .collect());
+        let speedup = rows.first().map_or(1.0, |r0| r0.time / time);
+        let reference_seconds = reference.map(|_| stat.of(m.reference_seconds.clone()));
+        let reference_speedup = match (rows.first(), reference_seconds) {
+            (Some(r0), Some(s)) => r0.reference_seconds_per_pair.map(|s0| s0 / s),
+            (None, Some(_)) => Some(1.0),
+            _ => None,
+        };
+        rows.push(ScalingRow {
+            scene: args.scene.display().to_string(),
+            steps,
+            threads: t,
+            statistic: stat.name(),
+            median_seconds: median(seconds.clone()),
+            min_seconds: Statistic::Min.of(seconds.clone()),
+            seconds,
+            seconds_per_particle_step: time / (steps as f64 * particles),
+            speedup,
+            identical_results: identical,
+            section_seconds: names
+                .iter()
+                .zip(&sections)
+                .map(|(r, &s)| (r.key(), s.into()))
+                .collect(),
+            narrow_phase_busy_thread_seconds: busy,
+            narrow_phase_idle_thread_seconds: idle,
+            reference_pairs_per_thread: reference.map(Reference::pairs_per_thread),
+            reference_seconds_per_pair: reference_seconds,
+            reference_speedup,
+            speedup_relative_to_reference: reference_speedup.map(|rs| speedup / rs),
+            time,
+            sections,
+        });
     }
+    rows
+}
+
+/// The report as tables: runs, sections, the narrow phase's idle time, the
+/// reference, and whether the results agree.
+fn print_report(
+    args: &ScalingArgs,
+    scene: &Scene,
+    steps: u64,
+    rows: &[ScalingRow],
+    sections: &[crate::sections::SectionRow],
+    reference: Option<&Reference>,
+) {
+    let stat = args.statistic;
     println!(
         "{}: {} particles, {steps} steps, {} runs per thread count, alternating",
         args.scene.display(),
@@ -201,35 +243,51 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         "s/particle-step",
         "speed-up"
     );
-    for ((&t, runs), &m) in args.threads.iter().zip(&results).zip(&times) {
-        let all: Vec<String> = runs.iter().map(|r| format!("{:.2}", r.seconds)).collect();
+    for r in rows {
+        let all: Vec<String> = r.seconds.iter().map(|s| format!("{s:.2}")).collect();
         println!(
-            "{t:>7}  {m:>10.3}  {:>14.3e}  {:>7.2}x  {}",
-            m / (steps as f64 * particles),
-            times[0] / m,
+            "{:>7}  {:>10.3}  {:>14.3e}  {:>7.2}x  {}",
+            r.threads,
+            r.time,
+            r.seconds_per_particle_step,
+            r.speedup,
             all.join(" ")
         );
     }
+    print_sections(stat, rows, sections);
+    print_narrow_phase(rows);
+    if let Some(reference) = reference {
+        print_reference(rows, reference);
+    }
+    let identical = rows.iter().all(|r| r.identical_results);
+    println!(
+        "final states {} across thread counts and runs",
+        if identical { "bit-identical" } else { "DIFFER" }
+    );
+}
+
+/// Seconds by section per thread count, and the speed-ups over the first.
+fn print_sections(stat: Statistic, rows: &[ScalingRow], sections: &[crate::sections::SectionRow]) {
     println!(
         "{} seconds by section, and speed-up over {} thread(s)",
         stat.name(),
-        args.threads[0]
+        rows[0].threads
     );
     print!("  {:<20}", "section");
-    for t in &args.threads {
-        print!("  {:>8}", format!("{t} thr"));
+    for r in rows {
+        print!("  {:>8}", format!("{} thr", r.threads));
     }
-    for t in &args.threads[1..] {
-        print!("  {:>8}", format!("x{t}"));
+    for r in &rows[1..] {
+        print!("  {:>8}", format!("x{}", r.threads));
     }
     println!();
-    for (k, r) in section_names.iter().enumerate() {
-        print!("  {:<20}", label(r));
-        for m in &section_times {
-            print!("  {:>8.3}", m[k]);
+    for (k, s) in sections.iter().enumerate() {
+        print!("  {:<20}", label(s));
+        for r in rows {
+            print!("  {:>8.3}", r.sections[k]);
         }
-        for m in &section_times[1..] {
-            let ratio = section_times[0][k] / m[k];
+        for r in &rows[1..] {
+            let ratio = rows[0].sections[k] / r.sections[k];
             if ratio.is_finite() {
                 print!("  {:>7.2}x", ratio);
             } else {
@@ -238,6 +296,9 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         }
         println!();
     }
+}
+
+fn print_narrow_phase(rows: &[ScalingRow]) {
     println!(
         "narrow phase: thread-seconds in tasks and outside them (late start, wait for the last task)"
     );
@@ -245,37 +306,38 @@ pub fn run(args: &ScalingArgs) -> CliResult {
         "{:>7}  {:>10}  {:>10}  {:>10}",
         "threads", "busy", "idle", "idle %"
     );
-    for (&t, &(busy, idle)) in args.threads.iter().zip(&narrow_busy_idle) {
+    for r in rows {
+        let (busy, idle) = (
+            r.narrow_phase_busy_thread_seconds,
+            r.narrow_phase_idle_thread_seconds,
+        );
         println!(
-            "{t:>7}  {busy:>10.3}  {idle:>10.3}  {:>9.1}%",
+            "{:>7}  {busy:>10.3}  {idle:>10.3}  {:>9.1}%",
+            r.threads,
             100.0 * idle / (busy + idle)
         );
     }
-    if let Some(r) = &reference_times {
-        println!(
-            "reference: each thread runs the scene's distance kernel {} times on {} cached pairs, after each run",
-            workload.as_ref().map_or(0, Reference::pairs_per_thread),
-            REFERENCE_SET
-        );
-        println!(
-            "{:>7}  {:>10}  {:>8}  {:>22}",
-            "threads", "ns/pair", "speed-up", "scene / reference"
-        );
-        for (k, &t) in args.threads.iter().enumerate() {
-            let rs = r[0] / r[k];
-            println!(
-                "{t:>7}  {:>10.2}  {:>7.2}x  {:>22.2}",
-                r[k] * 1e9,
-                rs,
-                (times[0] / times[k]) / rs
-            );
-        }
-    }
+}
+
+fn print_reference(rows: &[ScalingRow], reference: &Reference) {
     println!(
-        "final states {} across thread counts and runs",
-        if identical { "bit-identical" } else { "DIFFER" }
+        "reference: each thread runs the scene's distance kernel {} times on {} cached pairs, after each run",
+        reference.pairs_per_thread(),
+        REFERENCE_SET
     );
-    Ok(())
+    println!(
+        "{:>7}  {:>10}  {:>8}  {:>22}",
+        "threads", "ns/pair", "speed-up", "scene / reference"
+    );
+    for r in rows {
+        println!(
+            "{:>7}  {:>10.2}  {:>7.2}x  {:>22.2}",
+            r.threads,
+            r.reference_seconds_per_pair.unwrap_or(f64::NAN) * 1e9,
+            r.reference_speedup.unwrap_or(f64::NAN),
+            r.speedup_relative_to_reference.unwrap_or(f64::NAN)
+        );
+    }
 }
 
 /// The reference workload: every thread of the pool computes the scene's
@@ -285,7 +347,7 @@ pub fn run(args: &ScalingArgs) -> CliResult {
 /// themselves limits it. (A set shared out between the threads measured
 /// superlinear speed-ups on a 2-core machine, 2.07-2.15x with 50,000 to 1,000,000
 /// pairs; the likely cause, half a set fitting one core's caches better
-/// than the whole, was not confirmed: the guest has no cache counters.)
+/// than the whole, was not confirmed: the machine exposes no cache counters.)
 struct Reference {
     pairs: Vec<(Triangle, Triangle)>,
     /// Passes over `pairs` per thread per measurement.

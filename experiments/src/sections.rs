@@ -29,7 +29,7 @@ pub fn section_rows(t: &SectionTimes) -> Vec<SectionRow> {
     let mut rows = vec![row("integration", t.integration, false)];
     for &(name, seconds) in &t.effects {
         rows.push(row(name, seconds, false));
-        if name == "contact" {
+        if Some(name) == t.detecting_effect {
             let d = &t.detection;
             rows.push(row("triangle update", d.triangle_update, true));
             rows.push(row("broad phase", d.broad_phase, true));
@@ -65,6 +65,7 @@ mod tests {
                 narrow_phase: 6.0,
                 narrow_phase_busy: 11.0,
             },
+            detecting_effect: Some("contact"),
         };
         let rows = section_rows(&t);
         let names: Vec<_> = rows.iter().map(|r| r.name.as_str()).collect();

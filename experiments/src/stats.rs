@@ -6,7 +6,7 @@ pub enum Statistic {
     /// The typical run.
     #[default]
     Median,
-    /// The fastest run: on a machine whose speed swings (a shared VM), the
+    /// The fastest run: on a machine whose speed swings (a shared cloud machine), the
     /// least disturbed one, and the steadiest of the two between runs.
     Min,
 }

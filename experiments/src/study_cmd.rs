@@ -321,145 +321,152 @@ fn per_step(line: &Value, field: &str, every: u64) -> f64 {
 }
 
 fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
-    let plot_err = |e: Box<dyn std::error::Error>| CliError::runtime(format!("plot: {e}"));
     let scene = args
         .scene
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().into_owned());
-    let over_steps = |field: &str, scale: f64| -> Vec<Series> {
-        ran.iter()
-            .map(|r| Series {
-                name: r.spec.label.clone(),
-                points: r
-                    .lines
-                    .iter()
-                    .map(|l| {
-                        let v = if field.ends_with("imbalance") {
-                            l[field].as_f64().unwrap_or(1.0)
-                        } else {
-                            scale * per_step(l, field, args.metrics_every)
-                        };
-                        (l["step"].as_f64().unwrap_or(0.0), v)
-                    })
-                    .collect(),
-            })
-            .collect()
-    };
     match args.name {
-        StudyName::RepartitionFrequency => {
-            let sections = [
-                (
-                    "partition + migration",
-                    ["partition_seconds", "migration_seconds"].as_slice(),
-                ),
-                ("exchange wait", &["wait_seconds"]),
-                ("detection", &["local_local_seconds", "local_ghost_seconds"]),
-                ("forces", &["force_seconds"]),
-                ("integration", &["integration_seconds"]),
-            ];
-            let mut series: Vec<Series> = sections
-                .iter()
-                .map(|(name, fields)| Series {
-                    name: name.to_string(),
-                    points: ran
-                        .iter()
-                        .map(|r| {
-                            (
-                                r.spec.x,
-                                1e3 * fields.iter().map(|f| mean(r, f)).sum::<f64>(),
-                            )
-                        })
-                        .collect(),
-                })
-                .collect();
-            series.push(Series {
-                name: "step (total)".into(),
-                points: ran
-                    .iter()
-                    .map(|r| {
-                        (
-                            r.spec.x,
-                            1e3 * r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
-                        )
-                    })
-                    .collect(),
-            });
-            let caption = format!(
-                "{scene}, {} ranks: ms per step by section against K (never at K = {})",
-                args.ranks[0],
-                args.steps()
-            );
-            lines(
-                &dir.join("sections.svg"),
-                &caption,
-                ("repartition every K steps", "ms per step (mean over ranks)"),
-                &series,
-                true,
-            )
-            .map_err(plot_err)?;
-            let caption = format!("{scene}: imbalance of the ranks' busy time over the run");
-            lines(
-                &dir.join("imbalance.svg"),
-                &caption,
-                ("step", "busy imbalance (max/mean)"),
-                &over_steps("busy_imbalance", 1.0),
-                false,
-            )
-            .map_err(plot_err)?;
-        }
-        StudyName::Partitioners => {
-            let caption = format!(
-                "{scene}, {} ranks, repartition every {}: imbalance of the ranks' busy time",
-                args.ranks[0], args.repartition_every
-            );
-            lines(
-                &dir.join("imbalance.svg"),
-                &caption,
-                ("step", "busy imbalance (max/mean)"),
-                &over_steps("busy_imbalance", 1.0),
-                false,
-            )
-            .map_err(plot_err)?;
-            let caption = format!("{scene}, {} ranks: ms per step over the run", args.ranks[0]);
-            lines(
-                &dir.join("step-time.svg"),
-                &caption,
-                ("step", "ms per step (mean over ranks)"),
-                &over_steps("step_seconds", 1e3),
-                false,
-            )
-            .map_err(plot_err)?;
-        }
-        StudyName::Exchange => {
-            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-            let mut series = Vec::new();
-            for mode in ["blocking", "nonblocking"] {
-                for (what, field) in [("wait", "wait_seconds"), ("step", "step_seconds")] {
-                    series.push(Series {
-                        name: format!("{mode}: {what}"),
-                        points: ran
-                            .iter()
-                            .filter(|r| r.spec.series == mode)
-                            .map(|r| (r.spec.x, 1e3 * mean(r, field)))
-                            .collect(),
-                    });
-                }
-            }
-            let caption = format!(
-                "{scene}: ghost exchange wait per rank ({cores} cores: more ranks are oversubscribed)"
-            );
-            lines(
-                &dir.join("exchange.svg"),
-                &caption,
-                ("ranks", "ms per step (mean over ranks)"),
-                &series,
-                false,
-            )
-            .map_err(plot_err)?;
-        }
+        StudyName::RepartitionFrequency => repartition_figures(args, dir, ran, &scene),
+        StudyName::Partitioners => partitioner_figures(args, dir, ran, &scene),
+        StudyName::Exchange => exchange_figures(dir, ran, &scene),
         StudyName::Scheduling | StudyName::Accuracy => unreachable!("runs on one node"),
     }
-    Ok(())
+    .map_err(|e| CliError::runtime(format!("plot: {e}")))
+}
+
+type PlotResult = Result<(), Box<dyn std::error::Error>>;
+
+/// A metric of every run over the steps: imbalances as they are, other
+/// fields per step and times `scale`.
+fn over_steps(ran: &[Ran], field: &str, scale: f64, metrics_every: u64) -> Vec<Series> {
+    ran.iter()
+        .map(|r| Series {
+            name: r.spec.label.clone(),
+            points: r
+                .lines
+                .iter()
+                .map(|l| {
+                    let v = if field.ends_with("imbalance") {
+                        l[field].as_f64().unwrap_or(1.0)
+                    } else {
+                        scale * per_step(l, field, metrics_every)
+                    };
+                    (l["step"].as_f64().unwrap_or(0.0), v)
+                })
+                .collect(),
+        })
+        .collect()
+}
+
+/// Time per step by section against K, and the busy imbalance over the run.
+fn repartition_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
+    let sections = [
+        (
+            "partition + migration",
+            ["partition_seconds", "migration_seconds"].as_slice(),
+        ),
+        ("exchange wait", &["wait_seconds"]),
+        ("detection", &["local_local_seconds", "local_ghost_seconds"]),
+        ("forces", &["force_seconds"]),
+        ("integration", &["integration_seconds"]),
+    ];
+    let mut series: Vec<Series> = sections
+        .iter()
+        .map(|(name, fields)| Series {
+            name: name.to_string(),
+            points: ran
+                .iter()
+                .map(|r| {
+                    (
+                        r.spec.x,
+                        1e3 * fields.iter().map(|f| mean(r, f)).sum::<f64>(),
+                    )
+                })
+                .collect(),
+        })
+        .collect();
+    series.push(Series {
+        name: "step (total)".into(),
+        points: ran
+            .iter()
+            .map(|r| {
+                (
+                    r.spec.x,
+                    1e3 * r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
+                )
+            })
+            .collect(),
+    });
+    let caption = format!(
+        "{scene}, {} ranks: ms per step by section against K (never at K = {})",
+        args.ranks[0],
+        args.steps()
+    );
+    lines(
+        &dir.join("sections.svg"),
+        &caption,
+        ("repartition every K steps", "ms per step (mean over ranks)"),
+        &series,
+        true,
+    )?;
+    let caption = format!("{scene}: imbalance of the ranks' busy time over the run");
+    imbalance_figure(args, dir, ran, &caption)
+}
+
+/// Each run's busy imbalance over its steps.
+fn imbalance_figure(args: &StudyArgs, dir: &Path, ran: &[Ran], caption: &str) -> PlotResult {
+    lines(
+        &dir.join("imbalance.svg"),
+        caption,
+        ("step", "busy imbalance (max/mean)"),
+        &over_steps(ran, "busy_imbalance", 1.0, args.metrics_every),
+        false,
+    )
+}
+
+/// The busy imbalance and the time per step of each partitioner over the run.
+fn partitioner_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
+    let caption = format!(
+        "{scene}, {} ranks, repartition every {}: imbalance of the ranks' busy time",
+        args.ranks[0], args.repartition_every
+    );
+    imbalance_figure(args, dir, ran, &caption)?;
+    let caption = format!("{scene}, {} ranks: ms per step over the run", args.ranks[0]);
+    lines(
+        &dir.join("step-time.svg"),
+        &caption,
+        ("step", "ms per step (mean over ranks)"),
+        &over_steps(ran, "step_seconds", 1e3, args.metrics_every),
+        false,
+    )
+}
+
+/// The wait for ghosts and the step time against the ranks, both exchanges.
+fn exchange_figures(dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut series = Vec::new();
+    for mode in ["blocking", "nonblocking"] {
+        for (what, field) in [("wait", "wait_seconds"), ("step", "step_seconds")] {
+            series.push(Series {
+                name: format!("{mode}: {what}"),
+                points: ran
+                    .iter()
+                    .filter(|r| r.spec.series == mode)
+                    .map(|r| (r.spec.x, 1e3 * mean(r, field)))
+                    .collect(),
+            });
+        }
+    }
+    let caption = format!(
+        "{scene}: ghost exchange wait per rank ({cores} cores: more ranks are oversubscribed)"
+    );
+    lines(
+        &dir.join("exchange.svg"),
+        &caption,
+        ("ranks", "ms per step (mean over ranks)"),
+        &series,
+        false,
+    )
 }
 
 fn table(ran: &[Ran]) -> String {

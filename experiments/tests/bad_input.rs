@@ -4,17 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
-fn tridem(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+mod common;
+
+use common::tridem;
 
 fn temp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tridem-bad-{}-{name}", std::process::id()));
@@ -369,40 +361,61 @@ fn the_pairs_csv_reader_never_panics() {
     }
 }
 
+fn data(name: &str) -> String {
+    format!("{}/tests/data/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
 #[test]
 fn a_run_whose_contacts_stay_crossed_stops_unless_the_scene_allows_it() {
-    let dir = temp("crossed");
-    // Two grains meeting head-on through a contact a million times too soft
-    // to part them: they pass into each other, surfaces crossed for
-    // hundreds of steps.
-    let text = |allow: &str| {
-        let grain = |x: f64, v: f64| {
-            format!(
-                "[[particles]]\nmaterial = \"glass\"\n\
-                 shape = {{ kind = \"hull\", triangles = 20, radius = 0.005, seed = 7 }}\n\
-                 placement = {{ kind = \"single\", position = [{x}, 0.0, 0.0] }}\n\
-                 velocity = [{v}, 0.0, 0.0]\n\n"
-            )
-        };
-        format!(
-            "[simulation]\ndt = 5e-5\nend_time = 0.05\n{allow}\n\n\
-             [effects]\ncontact = {{}}\nrotation = {{}}\n\n\
-             [[materials]]\nname = \"glass\"\ndensity = 2500.0\nstiffness = 0.001\n\
-             restitution = 0.5\nhalo = 2.5e-4\n\n{}{}",
-            grain(-0.006, 0.5),
-            grain(0.006, -0.5)
-        )
-    };
-    let path = dir.join("crossed.toml");
-    std::fs::write(&path, text("")).unwrap();
-    let (code, _, err) = tridem(&["run", path.to_str().unwrap(), "--quiet"]);
+    let path = data("crossing-grains.toml");
+    let (code, _, err) = tridem(&["run", &path, "--quiet"]);
     assert_eq!(code, 1, "{err}");
     assert!(
         err.contains("body 0") && err.contains("body 1") && err.contains("100 steps in a row"),
         "{err}"
     );
-    std::fs::write(&path, text("allow_deep_contacts = true")).unwrap();
-    let (code, _, err) = tridem(&["run", path.to_str().unwrap(), "--quiet"]);
+    let allow = "simulation.allow_deep_contacts=true";
+    let (code, _, err) = tridem(&["run", &path, "--quiet", "--set", allow]);
+    assert_eq!(code, 0, "{err}");
+}
+
+#[test]
+fn a_body_wholly_inside_another_is_refused_unless_the_scene_allows_it() {
+    let dir = temp("enclosed");
+    let grain = |radius: f64, z: f64| {
+        format!(
+            "[[particles]]\nmaterial = \"glass\"\n\
+             shape = {{ kind = \"hull\", triangles = 20, radius = {radius}, seed = 7 }}\n\
+             placement = {{ kind = \"single\", position = [0.03, -0.02, {z}] }}\n\n"
+        )
+    };
+    // In the floor (0.01 thick, the grain 0.006 across), and a small grain
+    // in a large one: no surfaces cross, no contact sees either.
+    for (name, particles, inner, outer) in [
+        ("in-floor", grain(0.003, -0.005), "body 0", "body 1"),
+        (
+            "in-grain",
+            format!("{}{}", grain(0.012, 0.02), grain(0.003, 0.0205)),
+            "body 1",
+            "body 0",
+        ),
+    ] {
+        let path = scene(&dir, name, SIM, &particles);
+        let (code, _, err) = tridem(&["run", &path, "--steps", "10"]);
+        assert_eq!(code, 2, "{name}: {err}");
+        assert!(
+            err.contains(&format!("{inner} (line"))
+                && err.contains(&format!("wholly inside {outer}")),
+            "{name}: {err}"
+        );
+        let allow = "simulation.allow_deep_contacts=true";
+        let (code, _, err) = tridem(&["run", &path, "--steps", "10", "--quiet", "--set", allow]);
+        assert_eq!(code, 0, "{name}: {err}");
+    }
+    // Side by side, the same grains are accepted.
+    let apart = format!("{}{}", grain(0.012, 0.02), grain(0.003, 0.04));
+    let path = scene(&dir, "apart", SIM, &apart);
+    let (code, _, err) = tridem(&["run", &path, "--steps", "10", "--quiet"]);
     assert_eq!(code, 0, "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,22 +1,9 @@
 //! `tridem run` as users call it: output that ParaView can open, a summary,
 //! and clear errors for bad scenes.
+mod common;
+
+use common::{scene, tridem};
 use std::process::Command;
-
-fn tridem(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tridem"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn scene(name: &str) -> String {
-    format!("{}/../scenes/{name}", env!("CARGO_MANIFEST_DIR"))
-}
 
 #[test]
 fn run_writes_hdf5_and_xdmf_for_every_output_step() {

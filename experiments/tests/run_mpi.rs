@@ -346,6 +346,24 @@ fn a_bad_scene_ends_every_rank_with_one_message() {
 }
 
 #[test]
+fn lasting_crossed_contacts_stop_every_rank_with_one_message() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/crossing-grains.toml");
+    let scene = scene.to_str().unwrap();
+    let r = run(2, &["run", scene, "--quiet"]);
+    assert_eq!(r.code, 1, "{}", r.stderr);
+    assert_eq!(
+        r.stderr.matches("tridem: error:").count(),
+        1,
+        "{}",
+        r.stderr
+    );
+    assert!(r.stderr.contains("100 steps in a row"), "{}", r.stderr);
+    let allow = "simulation.allow_deep_contacts=true";
+    let r = run(2, &["run", scene, "--quiet", "--set", allow]);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+}
+
+#[test]
 fn sigterm_checkpoints_and_ends_every_rank() {
     let dir = temp("term");
     let out = dir.join("out");

@@ -12,6 +12,8 @@ use partition::workload::{Spec, Workload};
 use partition::{metrics, Aabb, Backend, Partitioner};
 use std::time::Instant;
 
+// A test program, long on purpose: its checks run in the order the tests
+// read its report, one after the other.
 fn main() {
     let universe = mpi::initialize().expect("MPI init");
     let world = universe.world();

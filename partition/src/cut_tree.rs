@@ -63,25 +63,4 @@ impl CutTree {
             }
         }
     }
-
-    /// The region of `rank` within `domain`.
-    pub fn region(&self, rank: i32, domain: &Aabb) -> Option<Aabb> {
-        fn walk(t: &CutTree, n: usize, b: Aabb, rank: i32) -> Option<Aabb> {
-            match t.nodes[n] {
-                Node::Leaf(r) => (r == rank).then_some(b),
-                Node::Cut {
-                    dim,
-                    value,
-                    left,
-                    right,
-                } => {
-                    let (mut l, mut r) = (b, b);
-                    l.hi[dim] = l.hi[dim].min(value);
-                    r.lo[dim] = r.lo[dim].max(value);
-                    walk(t, left, l, rank).or_else(|| walk(t, right, r, rank))
-                }
-            }
-        }
-        walk(self, 0, *domain, rank)
-    }
 }

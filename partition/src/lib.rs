@@ -55,11 +55,17 @@ pub trait Partitioner {
 
 /// The backends, by the names the command line uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Backend {
+    /// Zoltan's recursive coordinate bisection.
     ZoltanRcb,
+    /// Zoltan's recursive inertial bisection.
     ZoltanRib,
+    /// Zoltan's Hilbert space-filling curve.
     ZoltanHsfc,
+    /// METIS on the graph of items within a halo of each other.
     Metis,
+    /// The native recursive coordinate bisection.
     Rcb,
 }
 

@@ -73,6 +73,12 @@ impl Grid {
         (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
     }
 
+    /// The coordinates of cell `index` (the inverse of [`Grid::index`]).
+    fn coords_of(&self, index: usize) -> [usize; 3] {
+        let [nx, ny, _] = self.dims;
+        [index % nx, (index / nx) % ny, index / (nx * ny)]
+    }
+
     fn len(&self) -> usize {
         self.dims.iter().product()
     }
@@ -91,6 +97,22 @@ fn partition_on_root(
     nparts: i32,
     halo: f64,
 ) -> Result<(Vec<i32>, Grid), PartitionError> {
+    let n = items.len();
+    let (mut grid, graph_halo) = graph_grid(items, halo);
+    let cells = CellSort::of(items, &grid);
+    let mut owners = vec![0i32; n];
+    if nparts > 1 && n > 0 {
+        let edges = graph_edges(items, &grid, &cells, halo, graph_halo);
+        owners = metis_parts(items, nparts, &edges)?;
+    }
+    whole_cells(items, &mut grid, &cells, &mut owners, nparts);
+    Ok((owners, grid))
+}
+
+/// The grid the graph is built on, and the graph's halo: at least the
+/// contact halo, and wide enough that items have neighbours where they are
+/// sparse.
+fn graph_grid(items: &[Item], halo: f64) -> (Grid, f64) {
     let n = items.len();
     let mut domain = Aabb::EMPTY;
     let mut reach = 0.0f64;
@@ -120,117 +142,139 @@ fn partition_on_root(
         size *= 1.25;
         grid = Grid::new(&domain, size);
     }
-    // Items sorted by cell (counting sort): cell c holds by_cell[start[c]..start[c+1]].
-    let cell_of: Vec<usize> = items
-        .iter()
-        .map(|it| grid.index(grid.coords(it.point)))
-        .collect();
-    let mut start = vec![0usize; grid.len() + 1];
-    for &c in &cell_of {
-        start[c + 1] += 1;
-    }
-    for c in 0..grid.len() {
-        start[c + 1] += start[c];
-    }
-    let mut fill = start.clone();
-    let mut by_cell = vec![0u32; n];
-    for (i, &c) in cell_of.iter().enumerate() {
-        by_cell[fill[c]] = i as u32;
-        fill[c] += 1;
-    }
-    let mut owners = vec![0i32; n];
-    if nparts > 1 && n > 0 {
-        // Edges: all contact pairs (found from both ends), plus up to
-        // MAX_NEIGHBOURS nearest within the graph halo (dense regions would
-        // otherwise get hundreds per item), made symmetric as METIS requires.
-        // Work in cell order so that neighbouring cells are neighbours in memory.
-        let pts: Vec<[f64; 3]> = by_cell.iter().map(|&i| items[i as usize].point).collect();
-        let contact_boxes: Vec<Aabb> = by_cell
+    (grid, graph_halo)
+}
+
+/// Items sorted by cell (a counting sort): cell c holds
+/// `by_cell[start[c]..start[c + 1]]`.
+struct CellSort {
+    by_cell: Vec<u32>,
+    start: Vec<usize>,
+}
+
+impl CellSort {
+    fn of(items: &[Item], grid: &Grid) -> CellSort {
+        let cell_of: Vec<usize> = items
             .iter()
-            .map(|&i| items[i as usize].bbox.inflated(halo))
+            .map(|it| grid.index(grid.coords(it.point)))
             .collect();
-        let graph_boxes: Vec<Aabb> = by_cell
+        let mut start = vec![0usize; grid.len() + 1];
+        for &c in &cell_of {
+            start[c + 1] += 1;
+        }
+        for c in 0..grid.len() {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut by_cell = vec![0u32; items.len()];
+        for (i, &c) in cell_of.iter().enumerate() {
+            by_cell[fill[c]] = i as u32;
+            fill[c] += 1;
+        }
+        CellSort { by_cell, start }
+    }
+}
+
+/// The graph's edges, sorted, each once per direction: all contact pairs
+/// (found from both ends), plus up to MAX_NEIGHBOURS nearest within the
+/// graph halo (dense regions would otherwise get hundreds per item), made
+/// symmetric as METIS requires. Items are visited in cell order, so that
+/// neighbouring cells are neighbours in memory.
+fn graph_edges(
+    items: &[Item],
+    grid: &Grid,
+    cells: &CellSort,
+    halo: f64,
+    graph_halo: f64,
+) -> Vec<(u32, u32)> {
+    let (by_cell, start) = (&cells.by_cell, &cells.start);
+    let pts: Vec<[f64; 3]> = by_cell.iter().map(|&i| items[i as usize].point).collect();
+    let boxes = |pad: f64| -> Vec<Aabb> {
+        by_cell
             .iter()
-            .map(|&i| items[i as usize].bbox.inflated(graph_halo))
-            .collect();
-        let mut edges: Vec<(u32, u32)> = Vec::with_capacity(n * MAX_NEIGHBOURS);
-        let mut near: Vec<(f64, u32)> = Vec::new();
-        for cz in 0..grid.dims[2] {
-            for cy in 0..grid.dims[1] {
-                for cx in 0..grid.dims[0] {
-                    let c = [cx, cy, cz];
-                    let cell = grid.index(c);
-                    if start[cell] == start[cell + 1] {
-                        continue;
-                    }
-                    let lo = c.map(|x| x.saturating_sub(1));
-                    let hi = [0, 1, 2].map(|k| (c[k] + 1).min(grid.dims[k] - 1));
-                    for k in start[cell]..start[cell + 1] {
-                        near.clear();
-                        for z in lo[2]..=hi[2] {
-                            for y in lo[1]..=hi[1] {
-                                let row0 = grid.index([lo[0], y, z]);
-                                let row1 = grid.index([hi[0], y, z]);
-                                // Cells lo[0]..=hi[0] of a row are contiguous: one range.
-                                for k2 in start[row0]..start[row1 + 1] {
-                                    if k2 == k {
-                                        continue;
-                                    }
-                                    if contact_boxes[k].overlaps(&contact_boxes[k2]) {
-                                        edges.push((by_cell[k], by_cell[k2]));
-                                    } else if graph_boxes[k].overlaps(&graph_boxes[k2]) {
-                                        let d: f64 =
-                                            (0..3).map(|a| (pts[k2][a] - pts[k][a]).powi(2)).sum();
-                                        near.push((d, by_cell[k2]));
-                                    }
-                                }
-                            }
-                        }
-                        if near.len() > MAX_NEIGHBOURS {
-                            near.select_nth_unstable_by(MAX_NEIGHBOURS, |a, b| a.0.total_cmp(&b.0));
-                            near.truncate(MAX_NEIGHBOURS);
-                        }
-                        let i = by_cell[k];
-                        for &(_, j) in &near {
-                            edges.push((i, j));
-                            edges.push((j, i));
+            .map(|&i| items[i as usize].bbox.inflated(pad))
+            .collect()
+    };
+    let (contact_boxes, graph_boxes) = (boxes(halo), boxes(graph_halo));
+    let mut edges: Vec<(u32, u32)> = Vec::with_capacity(items.len() * MAX_NEIGHBOURS);
+    let mut near: Vec<(f64, u32)> = Vec::new();
+    for cell in 0..grid.len() {
+        let c = grid.coords_of(cell);
+        let lo = c.map(|x| x.saturating_sub(1));
+        let hi = [0, 1, 2].map(|k| (c[k] + 1).min(grid.dims[k] - 1));
+        for k in start[cell]..start[cell + 1] {
+            near.clear();
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    let row0 = grid.index([lo[0], y, z]);
+                    let row1 = grid.index([hi[0], y, z]);
+                    // Cells lo[0]..=hi[0] of a row are contiguous: one range.
+                    for k2 in (start[row0]..start[row1 + 1]).filter(|&k2| k2 != k) {
+                        if contact_boxes[k].overlaps(&contact_boxes[k2]) {
+                            edges.push((by_cell[k], by_cell[k2]));
+                        } else if graph_boxes[k].overlaps(&graph_boxes[k2]) {
+                            let d: f64 = (0..3).map(|a| (pts[k2][a] - pts[k][a]).powi(2)).sum();
+                            near.push((d, by_cell[k2]));
                         }
                     }
                 }
             }
-        }
-        edges.sort_unstable();
-        edges.dedup();
-        let mut xadj: Vec<metis::Idx> = Vec::with_capacity(n + 1);
-        let mut adjncy: Vec<metis::Idx> = Vec::with_capacity(edges.len());
-        xadj.push(0);
-        let mut e = 0;
-        for i in 0..n as u32 {
-            while e < edges.len() && edges[e].0 == i {
-                adjncy.push(edges[e].1 as metis::Idx);
-                e += 1;
+            if near.len() > MAX_NEIGHBOURS {
+                near.select_nth_unstable_by(MAX_NEIGHBOURS, |a, b| a.0.total_cmp(&b.0));
+                near.truncate(MAX_NEIGHBOURS);
             }
-            xadj.push(adjncy.len() as metis::Idx);
+            let i = by_cell[k];
+            for &(_, j) in &near {
+                edges.push((i, j));
+                edges.push((j, i));
+            }
         }
-        let mean = items.iter().map(|i| i.weight).sum::<f64>() / n as f64;
-        let scale = if mean > 0.0 { 100.0 / mean } else { 1.0 };
-        let vwgt: Vec<metis::Idx> = items
-            .iter()
-            .map(|i| ((i.weight * scale).round() as metis::Idx).max(1))
-            .collect();
-        let mut part = vec![0 as metis::Idx; n];
-        metis::Graph::new(1, nparts, &xadj, &adjncy)
-            .map_err(|e| PartitionError::Metis(format!("{e:?}")))?
-            .set_vwgt(&vwgt)
-            .part_kway(&mut part)
-            .map_err(|e| PartitionError::Metis(format!("{e:?}")))?;
-        owners = part;
     }
-    // Each occupied cell goes wholly to the rank holding most of its weight.
+    edges.sort_unstable();
+    edges.dedup();
+    edges
+}
+
+/// METIS k-way on the graph of `edges` (sorted), with the items' weights
+/// scaled to integers around 100.
+fn metis_parts(
+    items: &[Item],
+    nparts: i32,
+    edges: &[(u32, u32)],
+) -> Result<Vec<i32>, PartitionError> {
+    let n = items.len();
+    let mut xadj: Vec<metis::Idx> = Vec::with_capacity(n + 1);
+    let mut adjncy: Vec<metis::Idx> = Vec::with_capacity(edges.len());
+    xadj.push(0);
+    let mut e = 0;
+    for i in 0..n as u32 {
+        while e < edges.len() && edges[e].0 == i {
+            adjncy.push(edges[e].1 as metis::Idx);
+            e += 1;
+        }
+        xadj.push(adjncy.len() as metis::Idx);
+    }
+    let mean = items.iter().map(|i| i.weight).sum::<f64>() / n as f64;
+    let scale = if mean > 0.0 { 100.0 / mean } else { 1.0 };
+    let vwgt: Vec<metis::Idx> = items
+        .iter()
+        .map(|i| ((i.weight * scale).round() as metis::Idx).max(1))
+        .collect();
+    let mut part = vec![0 as metis::Idx; n];
+    metis::Graph::new(1, nparts, &xadj, &adjncy)
+        .map_err(|e| PartitionError::Metis(format!("{e:?}")))?
+        .set_vwgt(&vwgt)
+        .part_kway(&mut part)
+        .map_err(|e| PartitionError::Metis(format!("{e:?}")))?;
+    Ok(part)
+}
+
+/// Each occupied cell goes wholly to the rank holding most of its weight.
+fn whole_cells(items: &[Item], grid: &mut Grid, cells: &CellSort, owners: &mut [i32], nparts: i32) {
     grid.owner = vec![-1; grid.len()];
     let mut weight_of = vec![0.0f64; nparts.max(1) as usize];
     for c in 0..grid.len() {
-        let members = &by_cell[start[c]..start[c + 1]];
+        let members = &cells.by_cell[cells.start[c]..cells.start[c + 1]];
         if members.is_empty() {
             continue;
         }
@@ -250,7 +294,6 @@ fn partition_on_root(
         }
         grid.owner[c] = best as i32;
     }
-    Ok((owners, grid))
 }
 
 impl Partitioner for MetisPartitioner {

@@ -37,8 +37,6 @@ pub struct Rcb {
     /// Start from the previous cuts when repartitioning.
     pub reuse_cuts: bool,
     tree: Option<CutTree>,
-    /// Histogram rounds the last partitioning needed (all levels).
-    pub last_rounds: usize,
 }
 
 impl Default for Rcb {
@@ -49,7 +47,6 @@ impl Default for Rcb {
             reuse_margin: 0.02,
             reuse_cuts: true,
             tree: None,
-            last_rounds: 0,
         }
     }
 }
@@ -70,198 +67,37 @@ impl Rcb {
     }
 
     fn bisect(&mut self, comm: &SimpleCommunicator, items: &[Item]) -> Vec<i32> {
-        let size = comm.size();
         let previous = if self.reuse_cuts {
             self.tree.take()
         } else {
             None
         };
-        let mut nodes = vec![Node::Leaf(0)];
-        let mut group_of: Vec<u32> = vec![0; items.len()];
-        let mut groups = vec![Group {
-            node: 0,
-            r0: 0,
-            r1: size,
-        }];
-        let mut rounds = 0;
+        let mut level = Level {
+            nodes: vec![Node::Leaf(0)],
+            group_of: vec![0; items.len()],
+            groups: vec![Group {
+                node: 0,
+                r0: 0,
+                r1: comm.size(),
+            }],
+        };
         loop {
-            let active: Vec<usize> = (0..groups.len())
-                .filter(|&g| groups[g].r1 - groups[g].r0 > 1)
+            let active: Vec<usize> = (0..level.groups.len())
+                .filter(|&g| level.groups[g].r1 - level.groups[g].r0 > 1)
                 .collect();
             if active.is_empty() {
                 break;
             }
-            let ng = groups.len();
-            // Bounding boxes and weights of every group's items.
-            let (lo, hi, w) = group_boxes(items, &group_of, ng);
-            let mut glo = vec![0.0; 3 * ng];
-            let mut ghi = vec![0.0; 3 * ng];
-            let mut gw = vec![0.0; ng];
-            comm.all_reduce_into(&lo[..], &mut glo[..], SystemOperation::min());
-            comm.all_reduce_into(&hi[..], &mut ghi[..], SystemOperation::max());
-            comm.all_reduce_into(&w[..], &mut gw[..], SystemOperation::sum());
-
-            // Per active group: axis, target, bracket.
-            let mut dims = vec![0usize; ng];
-            let mut target = vec![0.0; ng];
-            let mut bracket = vec![(0.0f64, 0.0f64); ng];
-            let mut full = vec![(0.0f64, 0.0f64); ng];
-            let mut done = vec![true; ng];
-            for &g in &active {
-                let ext: [f64; 3] = [0, 1, 2].map(|k| ghi[3 * g + k] - glo[3 * g + k]);
-                let d = (0..3)
-                    .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
-                    .unwrap_or(0);
-                dims[g] = d;
-                let n = (groups[g].r1 - groups[g].r0) as f64;
-                let nl = ((groups[g].r1 - groups[g].r0) / 2) as f64;
-                target[g] = gw[g] * nl / n;
-                let (a, b) = (glo[3 * g + d], ghi[3 * g + d]);
-                full[g] = if a <= b { (a, b) } else { (0.0, 0.0) };
-                bracket[g] = full[g];
-                if let Some(Node::Cut { dim, value, .. }) =
-                    previous.as_ref().and_then(|t| t.nodes.get(groups[g].node))
-                {
-                    if *dim == d && a < b {
-                        let m = self.reuse_margin * (b - a);
-                        bracket[g] = ((value - m).max(a), (value + m).min(b));
-                    }
-                }
-                done[g] = a >= b || a.is_nan() || gw[g] == 0.0;
-            }
-            let mut cut = vec![0.0; ng];
-            for &g in &active {
-                cut[g] = bracket[g].1;
-            }
-            // Histogram rounds until every active group's cut is close enough.
-            for _round in 0..self.max_rounds {
-                if active.iter().all(|&g| done[g]) {
-                    break;
-                }
-                rounds += 1;
-
-                // below[g][k]: weight of group g's items with x <= candidate(bracket[g], k), k = 0..=BINS.
-                let local = items
-                    .par_iter()
-                    .zip(group_of.par_iter())
-                    .fold(
-                        || vec![0.0f64; ng * (BINS + 1)],
-                        |mut acc, (it, &g)| {
-                            let g = g as usize;
-                            if !done[g] {
-                                let x = it.point[dims[g]];
-                                let (a, b) = bracket[g];
-                                // First candidate at or above x.
-                                let k = if x <= a {
-                                    0
-                                } else if x > b {
-                                    BINS + 1
-                                } else {
-                                    let f = ((x - a) / (b - a) * BINS as f64).ceil() as usize;
-                                    let k = f.min(BINS);
-                                    // The estimate is off by at most one bin (rounding).
-                                    if k > 0 && x <= candidate(bracket[g], k - 1) {
-                                        k - 1
-                                    } else if x > candidate(bracket[g], k) {
-                                        k + 1
-                                    } else {
-                                        k
-                                    }
-                                };
-                                if k <= BINS {
-                                    acc[g * (BINS + 1) + k] += it.weight;
-                                }
-                            }
-                            acc
-                        },
-                    )
-                    .reduce(
-                        || vec![0.0f64; ng * (BINS + 1)],
-                        |mut a, b| {
-                            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                            a
-                        },
-                    );
-                let mut global = vec![0.0f64; ng * (BINS + 1)];
-                comm.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
-                for &g in &active {
-                    if done[g] {
-                        continue;
-                    }
-                    let h = &mut global[g * (BINS + 1)..(g + 1) * (BINS + 1)];
-                    for k in 1..=BINS {
-                        h[k] += h[k - 1];
-                    }
-                    let t = target[g];
-                    let tol = self.tolerance * gw[g];
-                    if t < h[0] - tol || t > h[BINS] + tol {
-                        // The reused bracket missed: search the whole extent.
-                        bracket[g] = full[g];
-                        continue;
-                    }
-                    let k = (0..=BINS).find(|&k| h[k] >= t).unwrap_or(BINS);
-                    let best = if k > 0 && (t - h[k - 1]) < (h[k] - t) {
-                        k - 1
-                    } else {
-                        k
-                    };
-                    cut[g] = candidate(bracket[g], best);
-                    if (h[best] - t).abs() <= tol || k == 0 {
-                        done[g] = true;
-                    } else {
-                        bracket[g] = (candidate(bracket[g], k - 1), candidate(bracket[g], k));
-                        if bracket[g].1 - bracket[g].0 <= 1e-14 * (full[g].1 - full[g].0) {
-                            done[g] = true;
-                        }
-                    }
-                }
-            }
-            // Split the groups and reassign their items.
-            let mut split = vec![None; ng];
-            for &g in &active {
-                let Group { node, r0, r1 } = groups[g];
-                let mid = r0 + (r1 - r0) / 2;
-                let left = nodes.len();
-                nodes.push(Node::Leaf(r0));
-                nodes.push(Node::Leaf(mid));
-                nodes[node] = Node::Cut {
-                    dim: dims[g],
-                    value: cut[g],
-                    left,
-                    right: left + 1,
-                };
-                let gl = groups.len();
-                groups.push(Group {
-                    node: left,
-                    r0,
-                    r1: mid,
-                });
-                groups.push(Group {
-                    node: left + 1,
-                    r0: mid,
-                    r1,
-                });
-                split[g] = Some((gl, dims[g], cut[g]));
-            }
-            group_of
-                .par_iter_mut()
-                .zip(items.par_iter())
-                .for_each(|(g, it)| {
-                    if let Some((gl, d, c)) = split[*g as usize] {
-                        *g = if it.point[d] <= c {
-                            gl as u32
-                        } else {
-                            gl as u32 + 1
-                        };
-                    }
-                });
-            // Retire the split groups by making them single-rank placeholders.
-            for &g in &active {
-                groups[g].r1 = groups[g].r0 + 1;
-                groups[g].node = usize::MAX;
-            }
+            let mut searches = self.start_searches(comm, items, &level, &active, previous.as_ref());
+            self.find_cuts(comm, items, &level.group_of, &active, &mut searches);
+            level.split(items, &active, &searches);
         }
         // Leaves carry their ranks; items take the rank of their group.
+        let Level {
+            nodes,
+            group_of,
+            groups,
+        } = level;
         let owners = group_of
             .iter()
             .map(|&g| match nodes.get(groups[g as usize].node) {
@@ -270,8 +106,236 @@ impl Rcb {
             })
             .collect();
         self.tree = Some(CutTree { nodes });
-        self.last_rounds = rounds;
         owners
+    }
+
+    /// Per group of the level: its axis (the longest of its items' box over
+    /// all ranks), its target weight, and its first bracket (around the
+    /// previous cut when that cut was along the same axis).
+    fn start_searches(
+        &self,
+        comm: &SimpleCommunicator,
+        items: &[Item],
+        level: &Level,
+        active: &[usize],
+        previous: Option<&CutTree>,
+    ) -> Vec<Search> {
+        let ng = level.groups.len();
+        let (lo, hi, w) = group_boxes(items, &level.group_of, ng);
+        let mut glo = vec![0.0; 3 * ng];
+        let mut ghi = vec![0.0; 3 * ng];
+        let mut gw = vec![0.0; ng];
+        comm.all_reduce_into(&lo[..], &mut glo[..], SystemOperation::min());
+        comm.all_reduce_into(&hi[..], &mut ghi[..], SystemOperation::max());
+        comm.all_reduce_into(&w[..], &mut gw[..], SystemOperation::sum());
+        // Groups of one rank are not cut.
+        let settled = Search {
+            done: true,
+            ..Search::default()
+        };
+        let mut searches = vec![settled; ng];
+        for &g in active {
+            let ext: [f64; 3] = [0, 1, 2].map(|k| ghi[3 * g + k] - glo[3 * g + k]);
+            let d = (0..3)
+                .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
+                .unwrap_or(0);
+            let Group { node, r0, r1 } = level.groups[g];
+            let (a, b) = (glo[3 * g + d], ghi[3 * g + d]);
+            let full = if a <= b { (a, b) } else { (0.0, 0.0) };
+            let mut bracket = full;
+            if let Some(Node::Cut { dim, value, .. }) = previous.and_then(|t| t.nodes.get(node)) {
+                if *dim == d && a < b {
+                    let m = self.reuse_margin * (b - a);
+                    bracket = ((value - m).max(a), (value + m).min(b));
+                }
+            }
+            searches[g] = Search {
+                dim: d,
+                target: gw[g] * ((r1 - r0) / 2) as f64 / (r1 - r0) as f64,
+                tol: self.tolerance * gw[g],
+                bracket,
+                full,
+                cut: bracket.1,
+                done: a >= b || a.is_nan() || gw[g] == 0.0,
+            };
+        }
+        searches
+    }
+
+    /// Histogram rounds until every active group's cut is close enough to
+    /// its target (or `max_rounds` have run).
+    fn find_cuts(
+        &self,
+        comm: &SimpleCommunicator,
+        items: &[Item],
+        group_of: &[u32],
+        active: &[usize],
+        searches: &mut [Search],
+    ) {
+        for _round in 0..self.max_rounds {
+            if active.iter().all(|&g| searches[g].done) {
+                break;
+            }
+            let local = histograms(items, group_of, searches);
+            let mut global = vec![0.0f64; local.len()];
+            comm.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
+            for &g in active {
+                if !searches[g].done {
+                    searches[g].narrow(&mut global[g * (BINS + 1)..(g + 1) * (BINS + 1)]);
+                }
+            }
+        }
+    }
+}
+
+/// The groups of one level of the tree, the nodes so far, and each item's group.
+struct Level {
+    nodes: Vec<Node>,
+    group_of: Vec<u32>,
+    groups: Vec<Group>,
+}
+
+impl Level {
+    /// Cuts every active group in two at its search's cut, and moves its
+    /// items into the halves.
+    fn split(&mut self, items: &[Item], active: &[usize], searches: &[Search]) {
+        let mut split = vec![None; self.groups.len()];
+        for &g in active {
+            let Group { node, r0, r1 } = self.groups[g];
+            let mid = r0 + (r1 - r0) / 2;
+            let left = self.nodes.len();
+            self.nodes.push(Node::Leaf(r0));
+            self.nodes.push(Node::Leaf(mid));
+            let s = &searches[g];
+            self.nodes[node] = Node::Cut {
+                dim: s.dim,
+                value: s.cut,
+                left,
+                right: left + 1,
+            };
+            split[g] = Some((self.groups.len() as u32, s.dim, s.cut));
+            self.groups.push(Group {
+                node: left,
+                r0,
+                r1: mid,
+            });
+            self.groups.push(Group {
+                node: left + 1,
+                r0: mid,
+                r1,
+            });
+            // Retired: a single-rank placeholder no item points to.
+            self.groups[g] = Group {
+                node: usize::MAX,
+                r0,
+                r1: r0 + 1,
+            };
+        }
+        self.group_of
+            .par_iter_mut()
+            .zip(items.par_iter())
+            .for_each(|(g, it)| {
+                if let Some((gl, d, c)) = split[*g as usize] {
+                    *g = if it.point[d] <= c { gl } else { gl + 1 };
+                }
+            });
+    }
+}
+
+/// The search for one group's cut.
+#[derive(Debug, Clone, Copy, Default)]
+struct Search {
+    dim: usize,
+    /// Weight the left part should hold, and how far off it may be.
+    target: f64,
+    tol: f64,
+    /// Where the cut is searched, and the group's whole extent.
+    bracket: (f64, f64),
+    full: (f64, f64),
+    cut: f64,
+    done: bool,
+}
+
+impl Search {
+    /// One round: `h[k]` is the weight of the group's items at candidate k
+    /// of the bracket; the cut moves to the candidate closest to the target
+    /// and the bracket shrinks to the bin that holds it.
+    fn narrow(&mut self, h: &mut [f64]) {
+        for k in 1..=BINS {
+            h[k] += h[k - 1];
+        }
+        let (t, tol) = (self.target, self.tol);
+        if t < h[0] - tol || t > h[BINS] + tol {
+            // The reused bracket missed: search the whole extent.
+            self.bracket = self.full;
+            return;
+        }
+        let k = (0..=BINS).find(|&k| h[k] >= t).unwrap_or(BINS);
+        let best = if k > 0 && (t - h[k - 1]) < (h[k] - t) {
+            k - 1
+        } else {
+            k
+        };
+        self.cut = candidate(self.bracket, best);
+        if (h[best] - t).abs() <= tol || k == 0 {
+            self.done = true;
+            return;
+        }
+        self.bracket = (candidate(self.bracket, k - 1), candidate(self.bracket, k));
+        // The bracket cannot shrink below rounding of the extent.
+        if self.bracket.1 - self.bracket.0 <= 1e-14 * (self.full.1 - self.full.0) {
+            self.done = true;
+        }
+    }
+}
+
+/// `h[g * (BINS + 1) + k]`: the weight of this rank's items of group g in
+/// bin k of its bracket (at or below candidate k, above candidate k − 1),
+/// for the groups still searching.
+fn histograms(items: &[Item], group_of: &[u32], searches: &[Search]) -> Vec<f64> {
+    let len = searches.len() * (BINS + 1);
+    items
+        .par_iter()
+        .zip(group_of.par_iter())
+        .fold(
+            || vec![0.0f64; len],
+            |mut acc, (it, &g)| {
+                let s = &searches[g as usize];
+                if !s.done {
+                    let k = bin_of(it.point[s.dim], s.bracket);
+                    if k <= BINS {
+                        acc[g as usize * (BINS + 1) + k] += it.weight;
+                    }
+                }
+                acc
+            },
+        )
+        .reduce(
+            || vec![0.0f64; len],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                a
+            },
+        )
+}
+
+/// The first candidate of `bracket` at or above x (BINS + 1: above them all).
+fn bin_of(x: f64, bracket: (f64, f64)) -> usize {
+    let (a, b) = bracket;
+    if x <= a {
+        return 0;
+    }
+    if x > b {
+        return BINS + 1;
+    }
+    let k = (((x - a) / (b - a) * BINS as f64).ceil() as usize).min(BINS);
+    // The estimate is off by at most one bin (rounding).
+    if k > 0 && x <= candidate(bracket, k - 1) {
+        k - 1
+    } else if x > candidate(bracket, k) {
+        k + 1
+    } else {
+        k
     }
 }
 

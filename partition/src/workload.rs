@@ -6,6 +6,7 @@ use crate::{Aabb, Item, LocalItems};
 
 /// How the items are placed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Workload {
     /// Uniform in the unit cube.
     Uniform,

@@ -128,6 +128,10 @@ fn consider(best: &mut Best, l: usize, p: [f64; 3], q: [f64; 3], ok: bool) {
     }
 }
 
+// One function on purpose, though long: the fifteen feature tests are
+// inlined into one loop body per lane set, which is what lets the compiler
+// keep the lanes in vector registers across them (split into calls, it
+// spills between them).
 #[inline(always)]
 fn batch(pk: &Packed) -> (V3, V3) {
     let mut best = Best {

@@ -24,9 +24,13 @@ use rayon::prelude::*;
 
 /// Which computation answers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
+    /// Exact: the nine edge-edge and six vertex-face closest points.
     Brute,
+    /// The penalty Newton solver alone, on SIMD batches.
     Penalty,
+    /// Penalty, with brute force for the pairs it does not certify.
     Hybrid,
 }
 
@@ -55,10 +59,12 @@ impl Method {
 /// What the hybrid recomputes by brute force when a batch has uncertified pairs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Fallback {
-    /// The whole batch (the published kernel).
-    #[default]
+    /// The whole batch (the published kernel). A pair's answer then depends
+    /// on its batch mates, and so on how pairs are cut into tasks.
     WholeBatch,
-    /// Only the uncertified pairs.
+    /// Only the uncertified pairs: each pair's answer is its own, whatever
+    /// the batches and threads. The default.
+    #[default]
     FailedPairs,
 }
 
@@ -66,16 +72,19 @@ pub enum Fallback {
 /// into consecutive shares and spread over threads. Shares of the dynamic and
 /// guided schedules are taken in order, each by whichever thread is free.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Schedule {
     /// Equal shares, one per thread (OpenMP `schedule(static)`).
-    #[default]
     Static,
     /// Shares of `grain` items taken on demand (OpenMP `schedule(dynamic, grain)`).
     Dynamic,
     /// Shares that shrink as the work runs out: 1/(2 threads) of what is left,
     /// at least `grain` items, taken on demand (OpenMP `schedule(guided,
     /// grain)` with half its share). Large shares first keep the kernel's
-    /// batches full; small ones last even out the finish.
+    /// batches full; small ones last even out the finish. The default: on
+    /// contact detection, where body pairs differ in cost, it leaves the
+    /// least idle time.
+    #[default]
     Guided,
 }
 
@@ -135,7 +144,7 @@ impl Threading {
 impl Default for Threading {
     fn default() -> Self {
         Threading {
-            schedule: Schedule::Static,
+            schedule: Schedule::default(),
             grain: 16,
         }
     }
@@ -158,7 +167,7 @@ impl Default for Options {
             method: Method::Hybrid,
             batch: 8,
             penalty: PenaltyParams::default(),
-            fallback: Fallback::WholeBatch,
+            fallback: Fallback::default(),
             threading: Threading::default(),
         }
     }

@@ -29,17 +29,75 @@
 //! an impact, as in the linear model whose restitution is exact; friction is
 //! told 0 then.
 
-use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
+use super::rotation::RotationParams;
+use super::{Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
 use crate::body::Body;
 use crate::contact::{Contact, Detector};
 use crate::distance::Options;
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
 use crate::mesh::Features;
+use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
+use serde::Deserialize;
 use std::ops::Range;
+
+/// `contact = {}`, or `contact = { skin = 1e-3 }` to keep a neighbour list
+/// (m; 0: the broad phase runs every step).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactParams {
+    #[serde(default)]
+    pub skin: f64,
+}
+
+fn positive(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
+impl Declare for ContactParams {
+    const NAME: &'static str = "contact";
+    const MATERIAL_PARAMS: &'static [MaterialParam] = &[
+        MaterialParam {
+            name: "stiffness",
+            get: |m| m.stiffness,
+            must_be: "a positive finite number (N/m)",
+            accepts: positive,
+        },
+        MaterialParam {
+            name: "restitution",
+            get: |m| m.restitution,
+            must_be: "in (0, 1]",
+            accepts: |e| e > 0.0 && e <= 1.0,
+        },
+        MaterialParam {
+            name: "halo",
+            get: |m| m.halo,
+            must_be: "a positive finite number (m)",
+            accepts: positive,
+        },
+    ];
+    fn check(&self) -> Result<(), String> {
+        match self.skin.is_finite() && self.skin >= 0.0 {
+            true => Ok(()),
+            false => Err(format!(
+                "skin must be a finite length >= 0 (m), got {}",
+                self.skin
+            )),
+        }
+    }
+    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>> {
+        let rotation = scene.effects.has::<RotationParams>();
+        Some(Box::new(ContactEffect::new(
+            &scene.world,
+            scene.kernel,
+            self.skin,
+            rotation,
+        )))
+    }
+}
 
 /// The contact effect: detection, then the [`NormalLaw`].
 pub struct ContactEffect {
@@ -210,6 +268,10 @@ pub(crate) fn pair_mass(world: &World, contacts: &[Contact], rotation: bool) -> 
 impl Effect for ContactEffect {
     fn name(&self) -> &'static str {
         "contact"
+    }
+
+    fn detects_contacts(&self) -> bool {
+        true
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {

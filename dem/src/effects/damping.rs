@@ -1,8 +1,38 @@
 //! Global viscous damping: F = −γ m v, τ = −γ_rot L (rates in 1/s).
 
-use super::{Effect, Forces, StepContext};
+use super::{Declare, Effect, Forces, StepContext};
 use crate::ledger::Ledger;
+use crate::scene::Scene;
 use crate::world::World;
+use serde::Deserialize;
+
+/// `damping = { linear = γ, angular = γ_rot }` (1/s, each 0 when left out).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampingParams {
+    #[serde(default)]
+    pub linear: f64,
+    #[serde(default)]
+    pub angular: f64,
+}
+
+impl Declare for DampingParams {
+    const NAME: &'static str = "damping";
+    fn check(&self) -> Result<(), String> {
+        let ok = |r: f64| r.is_finite() && r >= 0.0;
+        match ok(self.linear) && ok(self.angular) {
+            true => Ok(()),
+            false => Err("damping rates must be finite and non-negative".into()),
+        }
+    }
+    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+        Some(Box::new(DampingEffect {
+            linear: self.linear,
+            angular: self.angular,
+            ledger: Ledger::default(),
+        }))
+    }
+}
 
 pub struct DampingEffect {
     pub linear: f64,

@@ -23,14 +23,37 @@
 //! what the springs do not hold has been dissipated by sliding and damping.
 
 use super::contact::pair_ranges;
-use super::{Effect, Forces, PairForce, StepContext, FORCE_GRAIN};
+use super::{Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
 use crate::contact::{Contact, FeatureKey, FeatureKind};
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
+use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
+use serde::Deserialize;
 use std::ops::Range;
+
+/// `friction = {}`: the coefficients are the materials'.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrictionParams {}
+
+impl Declare for FrictionParams {
+    const NAME: &'static str = "friction";
+    /// Friction acts at the contacts the contact effect finds, with their
+    /// normal forces.
+    const NEEDS: &'static [&'static str] = &["contact"];
+    const MATERIAL_PARAMS: &'static [MaterialParam] = &[MaterialParam {
+        name: "friction",
+        get: |m| m.friction,
+        must_be: "finite and non-negative",
+        accepts: |mu| mu.is_finite() && mu >= 0.0,
+    }];
+    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>> {
+        Some(Box::new(FrictionEffect::new(&scene.world)))
+    }
+}
 
 /// A contact's name over the whole world.
 type Key = (usize, usize, FeatureKey);

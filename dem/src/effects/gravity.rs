@@ -1,8 +1,36 @@
 //! Gravity: F = m g on every particle.
 
-use super::{Effect, Forces, StepContext};
+use super::{Declare, Effect, Forces, StepContext};
+use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
+use serde::Deserialize;
+
+/// `gravity = { g = [gx, gy, gz] }` (m/s²).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GravityParams {
+    pub g: [f64; 3],
+}
+
+impl GravityParams {
+    pub fn g(&self) -> DVec3 {
+        DVec3::from_array(self.g)
+    }
+}
+
+impl Declare for GravityParams {
+    const NAME: &'static str = "gravity";
+    fn check(&self) -> Result<(), String> {
+        match self.g().is_finite() {
+            true => Ok(()),
+            false => Err("g must be finite".into()),
+        }
+    }
+    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+        Some(Box::new(GravityEffect { g: self.g() }))
+    }
+}
 
 pub struct GravityEffect {
     pub g: DVec3,

@@ -1,19 +1,25 @@
 //! The effects a scene can declare, each its own unit of the step pipeline.
 //!
 //! Only declared effects are constructed, so an undeclared effect costs
-//! nothing and cannot act. Each effect adds forces and torques; effects that
+//! nothing and cannot act. Each effect's file holds its parameters (what
+//! the scene writes), their checks, the material parameters it needs, and
+//! its force law; [`KINDS`] registers it in one line (see `declare.rs`). Each effect adds forces and torques; effects that
 //! need what another found (friction needs the contacts and their normal
 //! forces) read it from the [`StepContext`].
 
 mod contact;
 mod damping;
+mod declare;
 mod friction;
 mod gravity;
+mod rotation;
 
-pub use contact::{ContactEffect, NormalLaw};
-pub use damping::DampingEffect;
-pub use friction::FrictionEffect;
-pub use gravity::GravityEffect;
+pub use contact::{ContactEffect, ContactParams, NormalLaw};
+pub use damping::{DampingEffect, DampingParams};
+pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, KINDS};
+pub use friction::{FrictionEffect, FrictionParams};
+pub use gravity::{GravityEffect, GravityParams};
+pub use rotation::RotationParams;
 
 use crate::contact::{Contact, DetectionStats};
 use crate::ledger::Ledger;
@@ -145,6 +151,10 @@ impl std::ops::AddAssign for StepStats {
 pub trait Effect: Send {
     fn name(&self) -> &'static str;
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces);
+    /// Whether the effect finds the contacts (its time includes detection).
+    fn detects_contacts(&self) -> bool {
+        false
+    }
     /// Potential energy the effect stores (gravity, springs), for energy checks.
     fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
         0.0

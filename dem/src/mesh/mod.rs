@@ -11,6 +11,7 @@ mod generate;
 mod load;
 mod mass_properties;
 mod validate;
+mod winding_number;
 
 pub use features::{Crease, Face, Features, FLAT_ANGLE, NO_CREASE};
 pub use generate::{box_mesh, sphere_hull, subdivided, tetrahedron};

@@ -33,8 +33,6 @@ impl Method {
 pub enum Param {
     /// 0 silences Zoltan; set before anything else.
     DebugLevel(u32),
-    /// Allowed max/mean imbalance, e.g. 1.05.
-    ImbalanceTol(f64),
     /// Keep the cuts for point and box queries.
     KeepCuts(bool),
     /// Start RCB from the previous cuts when repartitioning.
@@ -48,7 +46,6 @@ impl Param {
         let flag = |b: bool| if b { "1" } else { "0" }.to_string();
         match self {
             Param::DebugLevel(v) => ("DEBUG_LEVEL", v.to_string()),
-            Param::ImbalanceTol(v) => ("IMBALANCE_TOL", v.to_string()),
             Param::KeepCuts(b) => ("KEEP_CUTS", flag(*b)),
             Param::RcbReuse(b) => ("RCB_REUSE", flag(*b)),
             Param::ObjWeightDim(v) => ("OBJ_WEIGHT_DIM", v.to_string()),
@@ -80,6 +77,47 @@ fn check(rc: c_int, what: &str) -> Result<(), ZoltanError> {
 /// The items a partitioning call reads through Zoltan's query callbacks.
 struct Query<'a> {
     items: &'a [Item],
+}
+
+/// The four query callbacks, registered on a Zoltan structure with a
+/// [`Query`] as their data for as long as this guard lives. Dropping it
+/// clears all four, so the structure never keeps a pointer to a query that
+/// is gone, whichever way the partitioning ends; the borrow keeps the query
+/// alive and unmoved until then.
+struct Callbacks<'q> {
+    zz: *mut z::Zoltan_Struct,
+    _query: PhantomData<&'q mut Query<'q>>,
+}
+
+impl<'q> Callbacks<'q> {
+    fn register(zz: *mut z::Zoltan_Struct, query: &'q mut Query<'_>) -> Callbacks<'q> {
+        let data = query as *mut Query as *mut c_void;
+        // SAFETY: `zz` is a live Zoltan structure (its owner outlives the
+        // guard); `data` stays valid while the guard borrows the query, and
+        // the guard unregisters it before that borrow ends.
+        unsafe {
+            z::Zoltan_Set_Num_Obj_Fn(zz, Some(num_obj), data);
+            z::Zoltan_Set_Obj_List_Fn(zz, Some(obj_list), data);
+            z::Zoltan_Set_Num_Geom_Fn(zz, Some(num_geom), data);
+            z::Zoltan_Set_Geom_Multi_Fn(zz, Some(geom_multi), data);
+        }
+        Callbacks {
+            zz,
+            _query: PhantomData,
+        }
+    }
+}
+
+impl Drop for Callbacks<'_> {
+    fn drop(&mut self) {
+        // SAFETY: clearing a callback with a null data pointer is always valid.
+        unsafe {
+            z::Zoltan_Set_Num_Obj_Fn(self.zz, None, std::ptr::null_mut());
+            z::Zoltan_Set_Obj_List_Fn(self.zz, None, std::ptr::null_mut());
+            z::Zoltan_Set_Num_Geom_Fn(self.zz, None, std::ptr::null_mut());
+            z::Zoltan_Set_Geom_Multi_Fn(self.zz, None, std::ptr::null_mut());
+        }
+    }
 }
 
 unsafe extern "C" fn num_obj(data: *mut c_void, ierr: *mut c_int) -> c_int {
@@ -197,7 +235,7 @@ impl<'c> Zoltan<'c> {
             return Err(ZoltanError::IdTooLarge);
         }
         let mut query = Query { items };
-        let data = &mut query as *mut Query as *mut c_void;
+        let callbacks = Callbacks::register(self.zz, &mut query);
         let (mut changes, mut ngid, mut nlid, mut nimp, mut nexp) = (0, 0, 0, 0, 0);
         let mut imp_g: z::ZOLTAN_ID_PTR = std::ptr::null_mut();
         let mut imp_l: z::ZOLTAN_ID_PTR = std::ptr::null_mut();
@@ -207,13 +245,10 @@ impl<'c> Zoltan<'c> {
         let mut exp_l: z::ZOLTAN_ID_PTR = std::ptr::null_mut();
         let mut exp_p: *mut c_int = std::ptr::null_mut();
         let mut exp_t: *mut c_int = std::ptr::null_mut();
-        // SAFETY: the callbacks read `query`, which outlives the call; the output
-        // pointers are Zoltan-allocated and freed below with Zoltan_LB_Free_Part.
+        // SAFETY: the callbacks read `query` through `callbacks`, which lives
+        // until after the call; the output pointers are Zoltan-allocated and
+        // freed below with Zoltan_LB_Free_Part.
         let rc = unsafe {
-            z::Zoltan_Set_Num_Obj_Fn(self.zz, Some(num_obj), data);
-            z::Zoltan_Set_Obj_List_Fn(self.zz, Some(obj_list), data);
-            z::Zoltan_Set_Num_Geom_Fn(self.zz, Some(num_geom), data);
-            z::Zoltan_Set_Geom_Multi_Fn(self.zz, Some(geom_multi), data);
             z::Zoltan_LB_Partition(
                 self.zz,
                 &mut changes,
@@ -244,11 +279,8 @@ impl<'c> Zoltan<'c> {
         unsafe {
             z::Zoltan_LB_Free_Part(&mut imp_g, &mut imp_l, &mut imp_p, &mut imp_t);
             z::Zoltan_LB_Free_Part(&mut exp_g, &mut exp_l, &mut exp_p, &mut exp_t);
-            // The query data dies with this call: never leave dangling pointers behind.
-            z::Zoltan_Set_Num_Obj_Fn(self.zz, None, std::ptr::null_mut());
-            z::Zoltan_Set_Obj_List_Fn(self.zz, None, std::ptr::null_mut());
-            z::Zoltan_Set_Geom_Multi_Fn(self.zz, None, std::ptr::null_mut());
         }
+        drop(callbacks);
         check(rc, "Zoltan_LB_Partition")?;
         Ok(owners)
     }

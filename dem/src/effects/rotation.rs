@@ -1,0 +1,19 @@
+//! Rotation: bodies turn under the torques of the other effects. Without
+//! it they only translate (the integrator leaves orientations alone, and
+//! the contact dashpot counts no inertia). It adds no force of its own.
+
+use super::{Declare, Effect};
+use crate::scene::Scene;
+use serde::Deserialize;
+
+/// `rotation = {}`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RotationParams {}
+
+impl Declare for RotationParams {
+    const NAME: &'static str = "rotation";
+    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+        None
+    }
+}

@@ -1,0 +1,518 @@
+//! From the checked spec to the scene: settings, effects, materials,
+//! bodies, the kernel's options, and the stable time step, each in its own
+//! function, in the order a later one needs an earlier one's result.
+
+use super::shapes::{check_motion, make_shape, placements, random_rotation, smallest_extent};
+use super::spec::{
+    KernelSpec, MaterialSpec, ObstacleSpec, ParticleSpec, SceneFile, SimulationSpec,
+};
+use super::{positive, Ctx, Parallel, Scene, SceneError, MAX_PARTICLES, MAX_STEPS};
+use crate::body::Body;
+use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
+use crate::effects::{ContactParams, Effects, KINDS};
+use crate::material::{damping_ratio, Material};
+use crate::mesh::MassProperties;
+use crate::world::World;
+use glam::{DMat3, DQuat, DVec3};
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use std::ops::Range;
+use toml::Spanned;
+
+/// Bounds of the penalty kernel's settings in a scene: iteration counts are
+/// reported per pair in a byte. The accuracy sweep (`tridem kernels
+/// --accuracy`, rounds 0-4) found rounds after the second certifying almost
+/// no more pairs; 8 leaves room above what was measured and keeps a typo
+/// from turning every uncertified batch into a long loop.
+const MAX_ITERATIONS: usize = 255;
+pub const MAX_FINISH_ROUNDS: usize = 8;
+
+/// The partitioners and exchanges `[parallel]` may name.
+const PARTITIONERS: [&str; 5] = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+const EXCHANGES: [&str; 2] = ["nonblocking", "blocking"];
+
+/// The bodies of a scene and, per body, the line that placed it.
+struct Bodies {
+    world: World,
+    lines: Vec<usize>,
+    warnings: Vec<String>,
+}
+
+pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
+    let sim_span = spec.simulation.span();
+    let sim = spec.simulation.into_inner();
+    let (dt, end_time) = time_stepping(ctx, sim_span.clone(), &sim)?;
+    let effects = effects(ctx, &spec.effects)?;
+    let materials = materials(ctx, &spec.materials, &effects)?;
+    let mut bodies = Bodies {
+        world: World {
+            materials,
+            ..World::default()
+        },
+        lines: Vec::new(),
+        warnings: Vec::new(),
+    };
+    for p in &spec.particles {
+        add_particles(ctx, p, dt, &mut bodies)?;
+    }
+    for o in &spec.obstacles {
+        add_obstacle(ctx, o, &mut bodies)?;
+    }
+    if bodies.world.dynamic_count() == 0 {
+        return ctx.err(0..0, "the scene has no particles");
+    }
+    let kernel = match spec.kernel {
+        None => Options::default(),
+        Some(k) => kernel(ctx, k.span(), k.into_inner())?,
+    };
+    let stable_dt = effects
+        .has::<ContactParams>()
+        .then(|| stable_step(&bodies.world));
+    if let Some(h) = stable_dt.filter(|&h| dt > h) {
+        let msg = format!(
+            "simulation.dt = {dt:e} s is above the stable step {h:e} s \
+             (stiffest contact pair, lightest particle)"
+        );
+        if !sim.allow_unstable_dt {
+            return ctx.err(
+                sim_span,
+                format!("{msg}; lower dt or set allow_unstable_dt = true"),
+            );
+        }
+        bodies.warnings.push(msg);
+    }
+    let parallel = match spec.parallel {
+        None => Parallel::default(),
+        Some(p) => parallel(ctx, p.span(), p.into_inner())?,
+    };
+    Ok(Scene {
+        world: bodies.world,
+        effects,
+        dt,
+        end_time,
+        output_every: sim.output_every,
+        stable_dt,
+        kernel,
+        warnings: bodies.warnings,
+        parallel,
+        body_lines: bodies.lines,
+        allow_deep_contacts: sim.allow_deep_contacts,
+    })
+}
+
+/// dt and end_time, checked: positive, at least one step, at most MAX_STEPS.
+fn time_stepping(
+    ctx: &Ctx,
+    span: Range<usize>,
+    sim: &SimulationSpec,
+) -> Result<(f64, f64), SceneError> {
+    let dt = positive(ctx, span.clone(), "simulation.dt", sim.dt)?;
+    let end_time = positive(ctx, span.clone(), "simulation.end_time", sim.end_time)?;
+    if sim.output_every == 0 {
+        return ctx.err(span, "simulation.output_every must be at least 1");
+    }
+    if end_time < dt {
+        return ctx.err(
+            span,
+            format!(
+                "simulation.end_time ({end_time:e} s) is shorter than one step (dt = {dt:e} s)"
+            ),
+        );
+    }
+    if end_time / dt > MAX_STEPS as f64 {
+        return ctx.err(
+            span,
+            format!(
+                "simulation.end_time / dt = {:.3e} steps, more than the {MAX_STEPS} a run may take",
+                end_time / dt
+            ),
+        );
+    }
+    Ok((dt, end_time))
+}
+
+/// `[effects]`, each entry read by its registered kind; an error names the
+/// line of the entry at fault.
+fn effects(ctx: &Ctx, table: &Spanned<toml::Table>) -> Result<Effects, SceneError> {
+    let entries = table.get_ref().iter().map(|(k, v)| (k.clone(), v.clone()));
+    Effects::read(entries).or_else(|(key, cause)| {
+        let start = table.span().start;
+        let at = key_offset(&ctx.text[start..], &key).map_or(start, |o| start + o);
+        ctx.err(at..at, cause)
+    })
+}
+
+/// Where `key = ` first starts a line of `section` (from the `[effects]`
+/// header on, the entry comes before any other use of the word as a key).
+fn key_offset(section: &str, key: &str) -> Option<usize> {
+    let mut offset = 0;
+    for line in section.split_inclusive('\n') {
+        let t = line.trim_start();
+        if t.strip_prefix(key)
+            .is_some_and(|rest| rest.trim_start().starts_with('='))
+        {
+            return Some(offset + line.len() - t.len());
+        }
+        offset += line.len();
+    }
+    None
+}
+
+/// The materials, each with exactly the parameters the declared effects
+/// need, every one within its bounds.
+fn materials(
+    ctx: &Ctx,
+    specs: &[Spanned<MaterialSpec>],
+    effects: &Effects,
+) -> Result<Vec<Material>, SceneError> {
+    let mut materials: Vec<Material> = Vec::new();
+    for m in specs {
+        let span = m.span();
+        let m = m.get_ref();
+        let name = &m.name;
+        if materials.iter().any(|x| &x.name == name) {
+            return ctx.err(span, format!("material `{name}` is defined twice"));
+        }
+        positive(
+            ctx,
+            span.clone(),
+            &format!("material `{name}`: density"),
+            m.density,
+        )?;
+        let material = Material {
+            name: name.clone(),
+            density: m.density,
+            stiffness: m.stiffness,
+            restitution: m.restitution,
+            halo: m.halo,
+            friction: m.friction,
+        };
+        check_material_params(&material, effects).or_else(|cause| ctx.err(span, cause))?;
+        materials.push(material);
+    }
+    Ok(materials)
+}
+
+/// Every parameter a declared effect needs is set and within its bounds;
+/// none is set for an effect the scene does not declare.
+fn check_material_params(m: &Material, effects: &Effects) -> Result<(), String> {
+    let name = &m.name;
+    for (effect, p) in effects.material_params() {
+        match (p.get)(m) {
+            None => {
+                return Err(format!(
+                    "material `{name}` needs `{}` for the {effect} effect",
+                    p.name
+                ))
+            }
+            Some(x) if !(p.accepts)(x) => {
+                return Err(format!(
+                    "material `{name}`: {} must be {}, got {x}",
+                    p.name, p.must_be
+                ))
+            }
+            Some(_) => {}
+        }
+    }
+    let declared = effects.names();
+    for kind in KINDS.iter().filter(|k| !declared.contains(&k.name)) {
+        if let Some(p) = kind.material_params.iter().find(|p| (p.get)(m).is_some()) {
+            return Err(format!(
+                "material `{name}` sets `{}`, but the scene does not declare the {} effect",
+                p.name, kind.name
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn material_index(
+    ctx: &Ctx,
+    span: Range<usize>,
+    world: &World,
+    name: &str,
+) -> Result<usize, SceneError> {
+    world
+        .materials
+        .iter()
+        .position(|m| m.name == name)
+        .map_or_else(|| ctx.err(span, format!("unknown material `{name}`")), Ok)
+}
+
+/// The particles of one `[[particles]]` entry: its shape, centred on its
+/// centre of mass, at each of its placements.
+fn add_particles(
+    ctx: &Ctx,
+    p: &Spanned<ParticleSpec>,
+    dt: f64,
+    bodies: &mut Bodies,
+) -> Result<(), SceneError> {
+    let span = p.span();
+    let p = p.get_ref();
+    let world = &mut bodies.world;
+    let mat = material_index(ctx, span.clone(), world, &p.material)?;
+    let mesh = make_shape(ctx, span.clone(), &p.shape)?;
+    let props = MassProperties::of(&mesh, world.materials[mat].density);
+    let local = mesh.translated(-props.centroid);
+    let inv_inertia = props.inertia.inverse();
+    if !inv_inertia.is_finite() {
+        return ctx.err(span, "particle shape has a singular inertia tensor");
+    }
+    let radius = local
+        .vertices
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0, f64::max);
+    let thickness = smallest_extent(&local);
+    let halo = world.materials[mat].halo.unwrap_or(0.0);
+    if halo > thickness / 2.0 {
+        return ctx.err(
+            span,
+            format!(
+                "material `{}`: the halo ({halo:e} m) is more than half the particle's \
+                 smallest extent ({thickness:e} m): contacts would act from further away \
+                 than the particle is thick",
+                p.material
+            ),
+        );
+    }
+    let positions = placements(
+        ctx,
+        span.clone(),
+        &p.placement,
+        radius,
+        local.triangles.len(),
+    )?;
+    if world.bodies.len() + positions.len() > MAX_PARTICLES {
+        return ctx.err(
+            span,
+            format!("the scene places more than the {MAX_PARTICLES} particles a scene may"),
+        );
+    }
+    let shape = world.shapes.len();
+    world.shapes.push(local);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed);
+    for pos in positions {
+        let q = orientation(ctx, span.clone(), p, &mut rng)?;
+        let omega = DVec3::from_array(p.angular_velocity);
+        let inertia_world = DMat3::from_quat(q) * props.inertia * DMat3::from_quat(q).transpose();
+        let body = Body {
+            shape,
+            material: mat,
+            x: DVec3::from_array(pos),
+            q,
+            v: DVec3::from_array(p.velocity),
+            l: inertia_world * omega,
+            inv_mass: 1.0 / props.mass,
+            mass: props.mass,
+            inv_inertia_body: inv_inertia,
+            inertia_body: props.inertia,
+        };
+        check_motion(
+            ctx,
+            span.clone(),
+            &body,
+            omega,
+            dt,
+            thickness,
+            &mut bodies.warnings,
+        )?;
+        world.bodies.push(body);
+        bodies.lines.push(ctx.line_of(span.start));
+    }
+    Ok(())
+}
+
+/// A particle's orientation: identity or random, then its rotation.
+fn orientation(
+    ctx: &Ctx,
+    span: Range<usize>,
+    p: &ParticleSpec,
+    rng: &mut Xoshiro256PlusPlus,
+) -> Result<DQuat, SceneError> {
+    let q = match p.orientation.as_deref() {
+        None | Some("identity") => DQuat::IDENTITY,
+        Some("random") => random_rotation(rng),
+        Some(o) => {
+            return ctx.err(
+                span,
+                format!("orientation must be `identity` or `random`, got `{o}`"),
+            )
+        }
+    };
+    Ok(match p.rotation {
+        Some(r) => crate::integrate::exp_map(DVec3::from_array(r)) * q,
+        None => q,
+    })
+}
+
+/// An obstacle: its mesh in its own frame, where the scene puts it.
+fn add_obstacle(
+    ctx: &Ctx,
+    o: &Spanned<ObstacleSpec>,
+    bodies: &mut Bodies,
+) -> Result<(), SceneError> {
+    let span = o.span();
+    let o = o.get_ref();
+    let world = &mut bodies.world;
+    let mat = material_index(ctx, span.clone(), world, &o.material)?;
+    let mesh = make_shape(ctx, span.clone(), &o.shape)?;
+    let q = o.rotation.map_or(DQuat::IDENTITY, |r| {
+        crate::integrate::exp_map(DVec3::from_array(r))
+    });
+    world.shapes.push(mesh);
+    world.bodies.push(Body {
+        shape: world.shapes.len() - 1,
+        material: mat,
+        x: DVec3::from_array(o.position),
+        q,
+        v: DVec3::ZERO,
+        l: DVec3::ZERO,
+        inv_mass: 0.0,
+        mass: f64::INFINITY,
+        inv_inertia_body: DMat3::ZERO,
+        inertia_body: DMat3::ZERO,
+    });
+    bodies.lines.push(ctx.line_of(span.start));
+    Ok(())
+}
+
+/// `[kernel]`: the detection's method, batch, fallback, schedule and the
+/// penalty kernel's settings, each within its bounds.
+fn kernel(ctx: &Ctx, span: Range<usize>, k: KernelSpec) -> Result<Options, SceneError> {
+    let method: Method = k
+        .method
+        .parse()
+        .map_or_else(|e| ctx.err(span.clone(), e), Ok)?;
+    let schedule: Schedule = k
+        .schedule
+        .parse()
+        .map_or_else(|e| ctx.err(span.clone(), e), Ok)?;
+    if !crate::distance::penalty::BATCH_SIZES.contains(&k.batch) {
+        return ctx.err(
+            span,
+            format!(
+                "kernel.batch must be one of 1, 2, 4, 8, 16, 32, 64, got {}",
+                k.batch
+            ),
+        );
+    }
+    if k.grain == 0 {
+        return ctx.err(span, "kernel.grain must be at least 1");
+    }
+    if method == Method::Brute
+        && (k.iterations.is_some() || k.finish_rounds.is_some() || k.tolerance.is_some())
+    {
+        return ctx.err(
+            span,
+            "kernel.iterations, kernel.finish_rounds and kernel.tolerance set the \
+             penalty kernel, which method = \"brute\" does not run",
+        );
+    }
+    let penalty = penalty_params(&k).or_else(|cause| ctx.err(span, cause))?;
+    Ok(Options {
+        method,
+        batch: k.batch,
+        penalty,
+        fallback: if k.fallback_failed_pairs {
+            Fallback::FailedPairs
+        } else {
+            Fallback::WholeBatch
+        },
+        threading: Threading {
+            schedule,
+            grain: k.grain,
+        },
+    })
+}
+
+/// The penalty kernel's settings `[kernel]` sets, each within its bounds.
+fn penalty_params(k: &KernelSpec) -> Result<PenaltyParams, String> {
+    let mut penalty = PenaltyParams::default();
+    if let Some(tol) = k.tolerance {
+        // Below a few ulps nothing is ever certified; at 1e-2 an answer may
+        // be 1% of the pair's size off.
+        if !(1e-15..=1e-2).contains(&tol) {
+            return Err(format!(
+                "kernel.tolerance must be between 1e-15 and 1e-2, got {tol}"
+            ));
+        }
+        penalty.tol = tol;
+    }
+    if let Some(n) = k.iterations {
+        // Per-pair iteration counts are reported in a byte.
+        if !(1..=MAX_ITERATIONS).contains(&n) {
+            return Err(format!(
+                "kernel.iterations must be between 1 and {MAX_ITERATIONS}, got {n}"
+            ));
+        }
+        penalty.max_iterations = n;
+    }
+    if let Some(n) = k.finish_rounds {
+        if n > MAX_FINISH_ROUNDS {
+            return Err(format!(
+                "kernel.finish_rounds must be between 0 and {MAX_FINISH_ROUNDS}, got {n}"
+            ));
+        }
+        penalty.finish_rounds = n;
+    }
+    Ok(penalty)
+}
+
+/// The stable step of the contact springs: ω = √(k/m*) for the stiffest
+/// pair of materials that can meet (springs in series) and the lightest
+/// reduced mass (half the lightest particle), h = (2/ω)(√(1 + ζ²) − ζ)
+/// with the largest damping ratio.
+fn stable_step(world: &World) -> f64 {
+    let materials = &world.materials;
+    let mut used_by_particles = vec![false; materials.len()];
+    let mut used = vec![false; materials.len()];
+    for b in &world.bodies {
+        used[b.material] = true;
+        used_by_particles[b.material] |= !b.is_static();
+    }
+    let stiffness = |i: usize| materials[i].stiffness.unwrap_or(0.0);
+    let mut k_max = 0.0f64;
+    for i in (0..materials.len()).filter(|&i| used_by_particles[i]) {
+        for j in (0..materials.len()).filter(|&j| used[j]) {
+            let (ki, kj) = (stiffness(i), stiffness(j));
+            k_max = k_max.max(ki * kj / (ki + kj));
+        }
+    }
+    let zeta = materials
+        .iter()
+        .filter_map(|m| m.restitution)
+        .map(damping_ratio)
+        .fold(0.0, f64::max);
+    let m_min = world
+        .bodies
+        .iter()
+        .filter(|b| !b.is_static())
+        .map(|b| b.mass)
+        .fold(f64::INFINITY, f64::min);
+    let omega = (k_max / (0.5 * m_min)).sqrt();
+    2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
+}
+
+/// `[parallel]`: names the command line takes.
+fn parallel(ctx: &Ctx, span: Range<usize>, p: Parallel) -> Result<Parallel, SceneError> {
+    let known = |name: &Option<String>, list: &[&str]| {
+        name.as_ref().is_none_or(|n| list.contains(&n.as_str()))
+    };
+    for (key, value, list) in [
+        ("partitioner", &p.partitioner, &PARTITIONERS[..]),
+        ("exchange", &p.exchange, &EXCHANGES[..]),
+    ] {
+        if !known(value, list) {
+            return ctx.err(
+                span,
+                format!(
+                    "parallel.{key} `{}` is none of {}",
+                    value.clone().unwrap_or_default(),
+                    list.join(", ")
+                ),
+            );
+        }
+    }
+    Ok(p)
+}

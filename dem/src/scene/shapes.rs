@@ -1,0 +1,230 @@
+//! Shapes and placements of a scene's bodies.
+
+use super::spec::{PlacementSpec, ShapeSpec};
+use super::{positive, Ctx, SceneError, MAX_PARTICLES};
+use crate::body::Body;
+use crate::mesh::{box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, TriMesh};
+use glam::{DQuat, DVec3};
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// A box subdivided 6 times has 49,152 triangles: enough for any test of
+/// mesh independence, and a typo cannot ask for billions.
+const MAX_SUBDIVIDE: usize = 6;
+/// A convex hull of a million triangles is finer than any particle model
+/// needs; its hull computation alone would take minutes.
+const MAX_HULL_TRIANGLES: usize = 1_000_000;
+
+/// The smallest side of a shape's box in its own frame: how thick it is.
+pub(super) fn smallest_extent(mesh: &TriMesh) -> f64 {
+    let (lo, hi) = mesh.vertices.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), &v| (lo.min(v), hi.max(v)),
+    );
+    (hi - lo).min_element()
+}
+
+/// A particle's initial motion must be a number the integrator can carry:
+/// its kinetic energy finite (a velocity of 1e200 m/s squares to infinity).
+/// One that crosses half its own thickness in a step can pass through a
+/// wall between two detections: warned.
+pub(super) fn check_motion(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    b: &Body,
+    omega: DVec3,
+    dt: f64,
+    thickness: f64,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let energy = 0.5 * b.mass * b.v.length_squared() + 0.5 * omega.dot(b.l);
+    if !(energy.is_finite() && b.l.is_finite() && b.q.is_finite() && b.x.is_finite()) {
+        return ctx.err(
+            span,
+            format!(
+                "particle: velocity [{:e}, {:e}, {:e}] m/s and angular velocity \
+                 [{:e}, {:e}, {:e}] rad/s give a kinetic energy of {energy:e} J, \
+                 which is not a finite number",
+                b.v.x, b.v.y, b.v.z, omega.x, omega.y, omega.z
+            ),
+        );
+    }
+    let travel = b.v.length() * dt;
+    if travel > thickness / 2.0 {
+        warnings.push(format!(
+            "{}:{}: a particle moves {travel:e} m in one step, more than half its thickness \
+             ({thickness:e} m): it can pass through walls and other particles between two \
+             detections; lower dt or the speed",
+            ctx.file,
+            ctx.line_of(span.start)
+        ));
+    }
+    Ok(())
+}
+
+pub(super) fn make_shape(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    s: &ShapeSpec,
+) -> Result<TriMesh, SceneError> {
+    match s {
+        ShapeSpec::Hull {
+            triangles,
+            radius,
+            seed,
+        } => {
+            let r = positive(ctx, span.clone(), "shape.radius", *radius)?;
+            if *triangles < 4 || triangles % 2 != 0 {
+                return ctx.err(
+                    span,
+                    format!("a hull needs an even number of triangles >= 4, got {triangles}"),
+                );
+            }
+            if *triangles > MAX_HULL_TRIANGLES {
+                return ctx.err(
+                    span,
+                    format!(
+                        "a hull of {triangles} triangles is more than the {MAX_HULL_TRIANGLES} \
+                         a scene may ask for (about {:.0} GB per particle)",
+                        *triangles as f64 * BYTES_PER_TRIANGLE / 1e9
+                    ),
+                );
+            }
+            Ok(sphere_hull(*triangles, r, *seed))
+        }
+        ShapeSpec::Box { size, subdivide } => {
+            for (k, &x) in size.iter().enumerate() {
+                positive(ctx, span.clone(), &format!("shape.size[{k}]"), x)?;
+            }
+            if *subdivide > MAX_SUBDIVIDE {
+                return ctx.err(
+                    span,
+                    format!(
+                        "shape.subdivide must be between 0 and {MAX_SUBDIVIDE}, got {subdivide}"
+                    ),
+                );
+            }
+            Ok(subdivided(&box_mesh(DVec3::from_array(*size)), *subdivide))
+        }
+        ShapeSpec::Tetrahedron { radius } => {
+            Ok(tetrahedron(positive(ctx, span, "shape.radius", *radius)?))
+        }
+        ShapeSpec::Mesh { file, scale } => {
+            let path = if file.is_absolute() {
+                file.clone()
+            } else {
+                ctx.dir.join(file)
+            };
+            let s = positive(ctx, span.clone(), "shape.scale", *scale)?;
+            load_mesh(&path)
+                .map(|m| m.scaled(s))
+                .or_else(|e| ctx.err(span, e.to_string()))
+        }
+    }
+}
+
+/// Bytes a particle's triangle takes in a run, about: the world-space copy
+/// and its box, per-thread copies, the broad phase's entries, the output.
+const BYTES_PER_TRIANGLE: f64 = 400.0;
+
+pub(super) fn placements(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    p: &PlacementSpec,
+    radius: f64,
+    triangles: usize,
+) -> Result<Vec<[f64; 3]>, SceneError> {
+    let count = match p {
+        PlacementSpec::Single { .. } => 1.0,
+        PlacementSpec::Lattice { count, .. } => count.iter().map(|&c| c as f64).product(),
+        PlacementSpec::Random { count, .. } => *count as f64,
+    };
+    if count > MAX_PARTICLES as f64 {
+        return ctx.err(
+            span,
+            format!(
+                "{count:e} particles is more than the {MAX_PARTICLES} a scene may place \
+                 (at {triangles} triangles each they would need about {:.0} GB)",
+                count * triangles as f64 * BYTES_PER_TRIANGLE / 1e9
+            ),
+        );
+    }
+    match p {
+        PlacementSpec::Single { position } => Ok(vec![*position]),
+        PlacementSpec::Lattice {
+            count,
+            spacing,
+            origin,
+        } => {
+            let s = positive(ctx, span.clone(), "placement.spacing", *spacing)?;
+            if s < 2.0 * radius {
+                return ctx.err(
+                    span,
+                    format!(
+                        "placement.spacing {s} is below the particle diameter {}",
+                        2.0 * radius
+                    ),
+                );
+            }
+            let mut v = Vec::new();
+            for k in 0..count[2] {
+                for j in 0..count[1] {
+                    for i in 0..count[0] {
+                        v.push([
+                            origin[0] + i as f64 * s,
+                            origin[1] + j as f64 * s,
+                            origin[2] + k as f64 * s,
+                        ]);
+                    }
+                }
+            }
+            Ok(v)
+        }
+        PlacementSpec::Random {
+            count,
+            lo,
+            hi,
+            seed,
+        } => {
+            // Random sequential packing: reject positions closer than a diameter.
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(*seed);
+            let mut v: Vec<[f64; 3]> = Vec::with_capacity(*count);
+            let mut tries = 0usize;
+            while v.len() < *count {
+                tries += 1;
+                if tries > 1000 * count.max(&1) {
+                    return ctx.err(
+                        span,
+                        format!(
+                            "could place only {} of {count} particles without overlap in the box",
+                            v.len()
+                        ),
+                    );
+                }
+                let p = [0, 1, 2].map(|k| {
+                    lo[k] + radius + (hi[k] - lo[k] - 2.0 * radius).max(0.0) * rng.random::<f64>()
+                });
+                let ok = v.iter().all(|o| {
+                    (0..3).map(|k| (o[k] - p[k]).powi(2)).sum::<f64>() >= (2.0 * radius).powi(2)
+                });
+                if ok {
+                    v.push(p);
+                }
+            }
+            Ok(v)
+        }
+    }
+}
+
+pub(super) fn random_rotation(rng: &mut Xoshiro256PlusPlus) -> DQuat {
+    // Shoemake's uniform random unit quaternion.
+    let (u1, u2, u3): (f64, f64, f64) = (rng.random(), rng.random(), rng.random());
+    let tau = 2.0 * std::f64::consts::PI;
+    DQuat::from_xyzw(
+        (1.0 - u1).sqrt() * (tau * u2).sin(),
+        (1.0 - u1).sqrt() * (tau * u2).cos(),
+        u1.sqrt() * (tau * u3).sin(),
+        u1.sqrt() * (tau * u3).cos(),
+    )
+    .normalize()
+}
