@@ -300,6 +300,8 @@ fn answers<'a>((distance, p, q): &'a (L, V3, V3)) -> AnswerLanes<'a, LANES> {
     }
 }
 
+/// # Safety
+/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (`Isa::Avx512.available()`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
@@ -308,6 +310,8 @@ unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
     unsafe { store_answers_avx512(&answers(&found), Solver::Brute, out) };
 }
 
+/// # Safety
+/// The CPU must have AVX2 and FMA (`Isa::Avx2.available()`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn batch_avx2<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {

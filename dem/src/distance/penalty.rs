@@ -213,6 +213,8 @@ fn kernel<const N: usize>(lanes: &PairLanes<N>, prm: &PenaltyParams) -> (Finishe
 // inside, the kernel's loops came out as 128- and 256-bit and scalar code
 // (penalty 52 -> 96 ns/pair).
 
+/// # Safety
+/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (`Isa::Avx512.available()`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 unsafe fn kernel_avx512<const N: usize, P: PairSource + ?Sized>(
@@ -223,6 +225,8 @@ unsafe fn kernel_avx512<const N: usize, P: PairSource + ?Sized>(
     kernel(&unsafe { load_pairs_avx512(pairs) }, prm)
 }
 
+/// # Safety
+/// The CPU must have AVX2 and FMA (`Isa::Avx2.available()`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn kernel_avx2<const N: usize, P: PairSource + ?Sized>(

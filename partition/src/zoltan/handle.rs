@@ -155,6 +155,7 @@ unsafe extern "C" fn obj_list(
 }
 
 unsafe extern "C" fn num_geom(_data: *mut c_void, ierr: *mut c_int) -> c_int {
+    // SAFETY: Zoltan passes a valid pointer to its error code.
     unsafe { *ierr = z::ZOLTAN_OK };
     3
 }
