@@ -5,12 +5,7 @@
 # Usage: scripts/reproduce.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/env.sh
-cargo build --release -p experiments >&2
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-tridem=target/release/tridem
-cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
-stamp="$cpu, $(nproc) cores, commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d)"
+source scripts/measure-env.sh
 figs=docs/figures
 mkdir -p "$figs"
 page=docs/results.md.new

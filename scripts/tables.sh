@@ -6,13 +6,7 @@
 # Usage: scripts/tables.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/env.sh
-cargo build --release -p experiments >&2
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-tridem=target/release/tridem
-cores=$(nproc)
-cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
-stamp="$cpu, $cores cores, commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d)"
+source scripts/measure-env.sh
 page=docs/tables.md.new
 # One section: a title, what it shows, and each command with its output.
 section() {
