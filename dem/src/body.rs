@@ -56,6 +56,7 @@ impl Body {
 }
 
 /// ω = R I⁻¹ Rᵀ L for orientation q.
+#[inline]
 pub fn omega_of(q: DQuat, inv_inertia_body: DMat3, l: DVec3) -> DVec3 {
     q * (inv_inertia_body * (q.inverse() * l))
 }

@@ -321,7 +321,8 @@ pub struct KernelsArgs {
     /// Threads (default: all cores).
     #[arg(long, value_parser = bounds::threads)]
     pub threads: Option<usize>,
-    /// How batches are shared among threads.
+    /// How batches are shared among threads (static by default: random pairs
+    /// are uniform work; the DEM's body pairs are not, and default to guided).
     #[arg(long, value_enum, default_value = "static")]
     pub schedule: Schedule,
     /// Batches per share with dynamic scheduling (smallest share with guided).

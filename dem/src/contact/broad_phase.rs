@@ -14,7 +14,7 @@
 //! thread count.
 
 use super::bounds::Bounds;
-use super::triangle_set::TriangleSet;
+use super::triangle_set::BodyGroup;
 use super::Phase;
 use crate::body::Body;
 use glam::DVec3;
@@ -116,12 +116,12 @@ impl BroadPhase {
     /// while no body moves farther than `pad`).
     pub(crate) fn body_pairs(
         &mut self,
-        set: &TriangleSet,
+        groups: &[BodyGroup],
         bodies: &[Body],
         phase: Phase,
         pad: f64,
     ) -> &[(usize, usize)] {
-        self.body_pairs_in_tasks_of(set, bodies, phase, pad, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
+        self.body_pairs_in_tasks_of(groups, bodies, phase, pad, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
     }
 
     /// What the last call returned.
@@ -133,14 +133,14 @@ impl BroadPhase {
     /// are at least `parallel_from` of them.
     fn body_pairs_in_tasks_of(
         &mut self,
-        set: &TriangleSet,
+        groups: &[BodyGroup],
         bodies: &[Body],
         phase: Phase,
         pad: f64,
         grain: usize,
         parallel_from: usize,
     ) -> &[(usize, usize)] {
-        self.collect(set, bodies, phase, pad);
+        self.collect(groups, bodies, phase, pad);
         self.sort();
         let (moving, sweep, fixed) = (&self.moving, &self.sweep, &self.fixed);
         // The pairs of moving box n: with the moving boxes after it in the
@@ -189,11 +189,11 @@ impl BroadPhase {
 
     /// Gathers this call's boxes: static ones apart, moving ones into the
     /// last sweep order when they are the same boxes as last time.
-    fn collect(&mut self, set: &TriangleSet, bodies: &[Body], phase: Phase, pad: f64) {
+    fn collect(&mut self, groups: &[BodyGroup], bodies: &[Body], phase: Phase, pad: f64) {
         let (fresh, fixed) = (&mut self.fresh, &mut self.fixed);
         fresh.clear();
         fixed.clear();
-        for (k, g) in set.groups().iter().enumerate() {
+        for (k, g) in groups.iter().enumerate() {
             let (list, pad) = if bodies[g.body as usize].is_static() {
                 (&mut *fixed, 0.0)
             } else {
@@ -375,7 +375,7 @@ fn widest_axis<'a>(boxes: impl Iterator<Item = &'a Bounds> + Clone) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::TriangleKey;
+    use crate::contact::{TriangleKey, TriangleSet};
     use glam::{DMat3, DQuat};
     use std::collections::BTreeSet;
 
@@ -480,7 +480,14 @@ mod tests {
                             assert!(reference.len() > 50, "a test with pairs to find");
                             let got = pool.install(|| {
                                 broad
-                                    .body_pairs_in_tasks_of(&set, &bodies, phase, 0.0, grain, 0)
+                                    .body_pairs_in_tasks_of(
+                                        set.groups(),
+                                        &bodies,
+                                        phase,
+                                        0.0,
+                                        grain,
+                                        0,
+                                    )
                                     .to_vec()
                             });
                             // Sorted and each once, on every pool size:

@@ -9,7 +9,7 @@
 //!
 //! 0. On one node, the set follows the world: each body's box is computed from
 //!    its pose, and the triangles of a moving body are filled in by the first
-//!    detection task that needs them (`TriangleSet::fill_group`), on the
+//!    detection task that needs them (`PassSet::fill`), on the
 //!    core that then reads them. Each pool thread has a copy of the set of
 //!    its own (`TriangleSet::mirror_lazily`), so that a triangle filled on
 //!    one core is never read on the other: a body needed on both is filled
@@ -50,10 +50,9 @@ mod triangle_set;
 pub use bounds::Bounds;
 pub use features::{Contact, FeatureKey, FeatureKind, WeightGradient};
 pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, TriangleSet};
+use triangle_set::{PassPairs, PassSet};
 
-use crate::distance::{
-    distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Triangle,
-};
+use crate::distance::{distance_many_serial, Closest, Counts, Options, PenaltyStats, Triangle};
 use crate::mesh::Features;
 use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
@@ -155,7 +154,7 @@ pub struct Detector {
 pub const REPLICA_BUDGET: usize = 256 << 20;
 
 /// How many body pairs ahead a detection task asks for the poses of the
-/// bodies it will fill (see `TriangleSet::prefetch_pose`).
+/// bodies it will fill (see `PassSet::prefetch_pose`).
 const PREFETCH_AHEAD: usize = 2;
 
 /// What one parallel task of a detection pass owns: its share of the body
@@ -171,7 +170,7 @@ struct Task {
     candidate_planes: Vec<(DVec3, f64)>,
     other_planes: Vec<(DVec3, f64)>,
     hits: Vec<(u32, u32)>,
-    /// Scratch of `TriangleSet::fill_group`.
+    /// Scratch of `PassSet::fill`.
     vertices: Vec<DVec3>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
@@ -267,9 +266,10 @@ impl Detector {
         }
         let triangle_update = seconds_since(start);
         let mut listed = self.listed.take().unwrap_or_default();
+        let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
         let pass = Pass {
             world,
-            sets: &sets,
+            sets: &views,
             halos,
             opts,
             phase: Phase::LocalLocal,
@@ -290,6 +290,7 @@ impl Detector {
         if self.skin > 0.0 {
             self.listed = Some(listed);
         }
+        drop(views);
         self.sets = sets;
         self.times.triangle_update = triangle_update;
         // Each task built the contacts of its own body pairs (one phase: a
@@ -324,9 +325,11 @@ impl Detector {
         phase: Phase,
         found: &mut Vec<TriangleContact>,
     ) -> DetectionStats {
+        // The caller's set is shared: a pass may only read it.
+        let view = PassSet::of_current(set).expect("a caller's set is never followed lazily");
         let pass = Pass {
             world,
-            sets: std::slice::from_ref(set),
+            sets: std::slice::from_ref(&view),
             halos,
             opts,
             phase,
@@ -353,7 +356,7 @@ impl Detector {
         let broad = &mut self.broad;
         let (body_pairs, ()) = rayon::join(
             || {
-                let pairs = broad.body_pairs(set, &world.bodies, phase, pad);
+                let pairs = broad.body_pairs(set.groups(), &world.bodies, phase, pad);
                 stop.store(true, Ordering::Relaxed);
                 pairs
             },
@@ -376,7 +379,7 @@ struct Pass<'a> {
     world: &'a World,
     /// The same triangles: one set, or one per thread of the pool (the
     /// thread of index k uses set k, filling it on demand).
-    sets: &'a [TriangleSet],
+    sets: &'a [PassSet<'a>],
     halos: &'a [f64],
     opts: &'a Options,
     phase: Phase,
@@ -444,14 +447,14 @@ fn run_tasks(
     (stats, n_tasks)
 }
 
-impl Pass<'_> {
+impl<'a> Pass<'a> {
     /// The set the calling thread reads and fills: thread k's is set k,
     /// or with fewer sets than threads (see [`REPLICA_BUDGET`]) set k modulo
     /// their number. Any set would give the same answers (they hold the same
     /// triangles); its own keeps them in its core's cache.
-    fn set_of_this_thread(&self) -> &TriangleSet {
+    fn set_of_this_thread(&self) -> PassSet<'a> {
         let k = rayon::current_thread_index().unwrap_or(0);
-        &self.sets[k % self.sets.len()]
+        self.sets[k % self.sets.len()]
     }
 }
 
@@ -471,9 +474,8 @@ impl Task {
             build,
             ..
         } = *pass;
-        let groups = set.groups();
-        self.owners.clear();
         self.body_pairs = 0;
+        let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
         let prefetch = rayon::current_num_threads() > 1;
         let prefetch_pair = |k: usize| {
@@ -485,73 +487,68 @@ impl Task {
         (0..PREFETCH_AHEAD).for_each(prefetch_pair);
         for (k, &(g, h)) in body_pairs.iter().enumerate() {
             prefetch_pair(k + PREFETCH_AHEAD);
-            set.fill_group(g, world, &mut self.vertices);
-            set.fill_group(h, world, &mut self.vertices);
-            let (ga, gb) = (&groups[g], &groups[h]);
-            let (a_part, a_box) = (ga.owned.clone(), set.owned_box(g));
-            let (a_part, a_box, b_part, b_box) = match phase {
-                Phase::LocalLocal => (a_part, a_box, gb.owned.clone(), set.owned_box(h)),
-                Phase::LocalGhost => (a_part, a_box, gb.ghost.clone(), gb.ghost_box),
-                Phase::Across if ga.owned.is_empty() => (
-                    ga.ghost.clone(),
-                    ga.ghost_box,
-                    gb.owned.clone(),
-                    set.owned_box(h),
-                ),
-                Phase::Across => (a_part, a_box, gb.ghost.clone(), gb.ghost_box),
+            let fa = set.fill(g, world, &mut self.vertices);
+            let fb = set.fill(h, world, &mut self.vertices);
+            let (a, b) = match phase {
+                Phase::LocalLocal => (fa.owned(), fb.owned()),
+                Phase::LocalGhost => (fa.owned(), fb.ghosts()),
+                Phase::Across if fa.group().owned.is_empty() => (fa.ghosts(), fb.owned()),
+                Phase::Across => (fa.owned(), fb.ghosts()),
             };
             // Pairs from a neighbour list (see `Detector::detect_moved`) may
             // have drifted apart; straight from the broad phase they overlap.
+            let (a_box, b_box) = (a.bounds, b.bounds);
             if !a_box.overlaps(&b_box) {
                 continue;
             }
             self.body_pairs += 1;
-            let reach = halos[ga.body as usize] + halos[gb.body as usize];
+            let reach = halos[fa.group().body as usize] + halos[fb.group().body as usize];
+            // The parts' triangles as locals, kept in registers across the
+            // loops' stores; index i of the set is at i - start.
+            let (at, a0) = (a.triangles(), a.range().start);
+            let (bt, b0) = (b.triangles(), b.range().start);
             // Every test below passes for a sizeable fraction (30-60% in the
             // hopper), so branches on them would mispredict: each loop writes
             // every index and advances past those that pass.
-            let n_a = select(&mut self.candidates, a_part, |i| {
-                set.triangle(i).bounds.overlaps(&b_box)
+            let n_a = select(&mut self.candidates, a.range(), |i| {
+                at[i - a0].bounds.overlaps(&b_box)
             });
             if n_a == 0 {
                 continue;
             }
-            let n_b = select(&mut self.others, b_part, |j| {
-                set.triangle(j).bounds.overlaps(&a_box)
+            let n_b = select(&mut self.others, b.range(), |j| {
+                bt[j - b0].bounds.overlaps(&a_box)
             });
             let (candidates, others) = (&self.candidates[..n_a], &self.others[..n_b]);
-            let planes_of = |ids: &[u32], planes: &mut Vec<(DVec3, f64)>| {
+            let planes_of = |ids: &[u32], t: &[SetTriangle], t0: usize, planes: &mut Vec<_>| {
                 planes.clear();
-                planes.extend(ids.iter().map(|&i| set.triangle(i as usize).plane()));
+                planes.extend(ids.iter().map(|&i| t[i as usize - t0].plane()));
             };
-            planes_of(candidates, &mut self.candidate_planes);
-            planes_of(others, &mut self.other_planes);
+            planes_of(candidates, at, a0, &mut self.candidate_planes);
+            planes_of(others, bt, b0, &mut self.other_planes);
+            let mut between = pairs.between(&a, &b);
             self.hits.resize(n_a, (0, 0));
             for (&j, &plane_j) in others.iter().zip(&self.other_planes) {
-                let tj = set.triangle(j as usize);
+                let tj = &bt[j as usize - b0];
                 let mut found = 0;
                 for (&i, &plane_i) in candidates.iter().zip(&self.candidate_planes) {
-                    let ti = set.triangle(i as usize);
+                    let ti = &at[i as usize - a0];
                     self.hits[found] = (i, j);
                     found += (ti.bounds.overlaps(&tj.bounds)
                         & !plane_separates(plane_j, &ti.vertices, reach)
                         & !plane_separates(plane_i, &tj.vertices, reach))
                         as usize;
                 }
-                self.owners.extend_from_slice(&self.hits[..found]);
+                between.extend(&self.hits[..found]);
             }
         }
-        let n = self.owners.len();
+        let n = pairs.as_slice().len();
         self.out.resize(n, Closest::UNSET);
         self.stats.resize(n, PenaltyStats::default());
-        let pairs = SetPairs {
-            set,
-            owners: &self.owners,
-        };
-        self.counts = distance_many_serial(&pairs, opts, &mut self.out, &mut self.stats)
+        self.counts = distance_many_serial(&pairs.source(), opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
         self.found.clear();
-        for (&(i, j), r) in self.owners.iter().zip(&self.out) {
+        for (&(i, j), r) in pairs.as_slice().iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
             if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
                 self.found.push(TriangleContact {
@@ -574,27 +571,6 @@ impl Task {
             ),
             None => 0,
         };
-    }
-}
-
-/// Triangle pairs of a set, by index: the kernels read them in place.
-struct SetPairs<'a> {
-    set: &'a TriangleSet,
-    owners: &'a [(u32, u32)],
-}
-
-impl PairSource for SetPairs<'_> {
-    fn len(&self) -> usize {
-        self.owners.len()
-    }
-
-    #[inline]
-    fn pair(&self, k: usize) -> (&Triangle, &Triangle) {
-        let (i, j) = self.owners[k];
-        (
-            &self.set.triangle(i as usize).vertices,
-            &self.set.triangle(j as usize).vertices,
-        )
     }
 }
 

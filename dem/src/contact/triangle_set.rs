@@ -16,13 +16,15 @@ use super::bounds::Bounds;
 use crate::body::Body;
 use crate::distance::Triangle;
 use crate::mesh::TriMesh;
-use crate::prefetch::prefetch;
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 use std::cell::UnsafeCell;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+
+mod pass;
+pub(crate) use pass::{PassPairs, PassSet};
+use std::sync::atomic::{AtomicU8, Ordering};
 
 /// A triangle's global name: its body and its index in the body's mesh.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -88,7 +90,7 @@ pub struct TriangleSet {
     /// triangles are current (empty: all are).
     fresh: Freshness,
     /// Per group, when the set follows the world lazily: the box of its
-    /// triangles as last filled (see [`TriangleSet::owned_box`]).
+    /// triangles as last filled (see [`pass::Filled::owned`]).
     filled_boxes: Vec<Slot<Bounds>>,
     /// Per group: halo and whether the body moves, as of `follow_world`.
     halos: Vec<f64>,
@@ -101,12 +103,17 @@ pub struct TriangleSet {
     generation: u64,
 }
 
-/// A triangle (or a group's box) of the set, which [`TriangleSet::fill_group`]
-/// may write through a shared reference.
+/// A triangle (or a group's box) of the set, which a detection pass
+/// ([`PassSet::fill`]) may write through a shared reference.
+///
+/// Written only through `&mut TriangleSet`, or by `PassSet::fill` on a stale
+/// group; a pass over a set with stale groups holds the set's `&mut` borrow
+/// (`PassSet::new`), so outside the pass module every `&TriangleSet` reads
+/// slots that no one writes.
+#[repr(transparent)]
 struct Slot<T>(UnsafeCell<T>);
 
-// SAFETY: concurrent access is ordered by the groups' states (see
-// `TriangleSet::fill_group` and `TriangleSet::triangle`).
+// SAFETY: concurrent access is ordered by the groups' states (see `pass`).
 unsafe impl<T: Send> Sync for Slot<T> {}
 
 impl<T: Copy> Slot<T> {
@@ -115,7 +122,7 @@ impl<T: Copy> Slot<T> {
     }
 
     /// # Safety
-    /// No thread writes the slot meanwhile (see `Sync` above).
+    /// No thread writes the slot meanwhile (see the type's doc).
     unsafe fn get(&self) -> T {
         unsafe { *self.0.get() }
     }
@@ -123,7 +130,7 @@ impl<T: Copy> Slot<T> {
 
 impl<T: Copy> Clone for Slot<T> {
     fn clone(&self) -> Slot<T> {
-        // SAFETY: a set is cloned outside detection passes, with no filler running.
+        // SAFETY: a `&TriangleSet` outside a pass reads slots no one writes.
         Slot::new(unsafe { self.get() })
     }
 }
@@ -209,7 +216,7 @@ impl TriangleSet {
     }
 
     /// Like [`Self::update_from_world`], but the triangles of moving bodies
-    /// are left to [`Self::fill_group`], called by whichever detection task
+    /// are left to [`PassSet::fill`], called by whichever detection task
     /// needs them first; only the groups' boxes are computed here.
     ///
     /// Why: on several threads, rewriting every triangle in a pass of its own
@@ -221,87 +228,9 @@ impl TriangleSet {
         self.follow_world(world, halos, Fill::OnDemand);
     }
 
-    /// Makes group `g`'s triangles current (a no-op unless the set follows the
-    /// world lazily and `g` moved): the first caller computes them, a
-    /// concurrent caller waits for it. Call before reading the group's
-    /// triangles during a detection pass. `vertices` is scratch.
-    pub(crate) fn fill_group(&self, g: usize, world: &World, vertices: &mut Vec<DVec3>) {
-        let Some(state) = self.fresh.0.get(g) else {
-            return;
-        };
-        loop {
-            // Load before trying to claim: most calls find the group current,
-            // and a compare-exchange takes the cache line exclusively even when
-            // it fails, so both threads asking about the same group would
-            // bounce the line between their cores on every body pair.
-            match state.load(Ordering::Acquire) {
-                CURRENT => return,
-                STALE => {
-                    if state
-                        .compare_exchange(STALE, FILLING, Ordering::Acquire, Ordering::Acquire)
-                        .is_ok()
-                    {
-                        break;
-                    }
-                }
-                // Another task is filling it: a microsecond or so.
-                _ => std::hint::spin_loop(),
-            }
-        }
-        let group = &self.groups[g];
-        let body = &world.bodies[group.body as usize];
-        let halo = self.halos[g];
-        let mesh = &world.shapes[body.shape];
-        world_vertices(body, mesh, vertices);
-        let mut bbox = Bounds::EMPTY;
-        for (slot, t) in self.triangles[group.owned.clone()]
-            .iter()
-            .zip(&mesh.triangles)
-        {
-            let v = [
-                vertices[t[0] as usize],
-                vertices[t[1] as usize],
-                vertices[t[2] as usize],
-            ];
-            let triangle = SetTriangle::new(v, halo);
-            // SAFETY: this thread moved the group from STALE to FILLING, so it
-            // is the only one writing its slots, and no one reads them until
-            // they see CURRENT (stored below with Release; readers load it
-            // with Acquire in this function before reading). The slots of
-            // different groups are disjoint.
-            unsafe { *slot.0.get() = triangle };
-            bbox = bbox.union(&triangle.bounds);
-        }
-        // SAFETY: as for the triangles: the group's own slot, while FILLING.
-        unsafe { *self.filled_boxes[g].0.get() = bbox };
-        state.store(CURRENT, Ordering::Release);
-    }
-
-    /// Starts loading the pose of group `g`'s body into this core's cache if
-    /// the group is stale, for a [`Self::fill_group`] on it soon after.
-    ///
-    /// Why: on several threads the pose was last written by whichever core
-    /// integrated the body, and waiting for its cache line took a quarter of
-    /// the fills' time at two threads (hopper, docs/dem.md).
-    #[inline]
-    pub(crate) fn prefetch_pose(&self, g: usize, world: &World) {
-        let (Some(state), Some(group)) = (self.fresh.0.get(g), self.groups.get(g)) else {
-            return;
-        };
-        if state.load(Ordering::Relaxed) != STALE {
-            return;
-        }
-        let Some(body) = world.bodies.get(group.body as usize) else {
-            return;
-        };
-        prefetch(&body.shape);
-        prefetch(&body.x);
-        prefetch(&body.q);
-    }
-
     /// Makes this set a replica of `primary`, a set that follows the world
     /// lazily, for the pass about to run: the same layout, groups and halos,
-    /// the moving bodies' triangles left to [`Self::fill_group`] (on this
+    /// the moving bodies' triangles left to [`PassSet::fill`] (on this
     /// replica, by the thread that uses it), the static bodies' copied when
     /// they changed. Call after `primary`'s own update and before any fill.
     pub(crate) fn mirror_lazily(&mut self, primary: &TriangleSet) {
@@ -337,11 +266,11 @@ impl TriangleSet {
             } else {
                 if self.poses[g] != primary.poses[g] || self.halos[g] != primary.halos[g] {
                     // A static body placed anew: copy its triangles, filled
-                    // by `primary`'s update (no filler runs between passes).
+                    // by `primary`'s update.
                     for i in primary.groups[g].owned.clone() {
                         *self.triangles[i].0.get_mut() = *primary.triangle(i);
                     }
-                    // SAFETY: as above, no filler runs.
+                    // SAFETY: `primary` is borrowed outside a pass (see `Slot`).
                     *self.filled_boxes[g].0.get_mut() = unsafe { primary.filled_boxes[g].get() };
                 }
                 CURRENT
@@ -354,25 +283,12 @@ impl TriangleSet {
         self.generation = primary.generation;
     }
 
-    /// Fills stale groups, last to first, until `stop` is set. For a thread
-    /// that would otherwise wait (see `Detector::run_tasks`); the detection
-    /// tasks fill whatever is left.
-    pub(crate) fn prefill_until(&self, world: &World, stop: &AtomicBool) {
-        let mut vertices = Vec::new();
-        for g in (0..self.fresh.0.len()).rev() {
-            if stop.load(Ordering::Relaxed) {
-                return;
-            }
-            self.fill_group(g, world, &mut vertices);
-        }
-    }
-
     /// The bodies have moved since the last [`Self::follow_world_lazily`]:
     /// every moving body's triangles and box are left to
-    /// [`Self::fill_group`], without reading the bodies. For a detector
+    /// [`PassSet::fill`], without reading the bodies. For a detector
     /// whose body pairs come from a list built with a skin (`Detector`); the
-    /// group boxes of [`Self::groups`] stay as they were, so call
-    /// [`Self::owned_box`] after `fill_group` for a current one. Returns
+    /// group boxes of [`Self::groups`] stay as they were: a pass's filled
+    /// group has the current one ([`pass::Filled::owned`]). Returns
     /// false (and changes nothing) unless the set already follows `world`'s
     /// bodies lazily.
     pub(crate) fn advance_lazily(&mut self, world: &World) -> bool {
@@ -638,27 +554,12 @@ impl TriangleSet {
         self.keys[i]
     }
 
-    /// Triangle `i`. During a detection pass on a set that follows the world
-    /// lazily, only after `fill_group` on its group.
+    /// Triangle `i`. Of a set that follows the world lazily, a moving body's
+    /// triangles are as of the last detection pass that needed them.
     pub fn triangle(&self, i: usize) -> &SetTriangle {
-        // SAFETY: slots are written through `&mut self`, or by `fill_group`
-        // while their group is FILLING, and the detection tasks (the only
-        // callers of `fill_group`, on the detector's private set) read a
-        // group's triangles only after their own `fill_group` call on it.
+        // SAFETY: no one writes the slots of a set borrowed outside a pass
+        // (see `Slot`), for as long as this borrow lasts.
         unsafe { &*self.triangles[i].0.get() }
-    }
-
-    /// The current box of group `g`'s owned triangles, inflated by the halo.
-    /// During a detection pass on a set that follows the world lazily, only
-    /// after `fill_group` on the group: the group's `owned_box` field is then
-    /// as of the last full update of the set, which the steps of a
-    /// detector's neighbour list do not redo.
-    pub fn owned_box(&self, g: usize) -> Bounds {
-        match self.filled_boxes.get(g) {
-            // SAFETY: as for `triangle`.
-            Some(b) => unsafe { b.get() },
-            None => self.groups[g].owned_box,
-        }
     }
 
     /// One group per body present, in body order.
