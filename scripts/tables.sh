@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates docs/tables.md: the current results table of each area
 # (distance kernels, the DEM on one node, the partitioners, the DEM across
-# ranks), each under the command that printed it, stamped with the CPU
+# ranks, and ranks against threads), each under the command that printed it, stamped with the CPU
 # model, the cores and the commit. A few minutes on two cores.
 # Usage: scripts/tables.sh
 set -euo pipefail
@@ -54,5 +54,15 @@ cores as threads, then on 2 ranks of one thread, repartitioning every 20 steps w
 RCB (docs/distributed.md)." \
   "tridem run scenes/silo-1000.toml --steps 600 --quiet" \
   "mpirun -np 2 --oversubscribe tridem run scenes/silo-1000.toml --steps 600 --threads 1 --partitioner rcb --repartition-every 20 --quiet"
+{
+  echo "### Ranks or threads on one node"
+  echo
+  echo "The same cores as 1 rank x $cores threads and as $cores ranks x 1 thread, side by side"
+  echo "(docs/distributed.md, \"One node: ranks or threads\")."
+  echo
+  scripts/distributed-table.sh 3 "$cores"
+  echo
+} >> "$page"
+echo "Ranks or threads: done" >&2
 mv "$page" docs/tables.md
 echo "docs/tables.md regenerated" >&2
