@@ -1,17 +1,42 @@
 #!/usr/bin/env bash
-# Measures every partitioner on every workload (the table in docs/partition.md).
+# Every partitioner on every workload: three partitioning steps each under
+# mpirun. Writes OUTDIR/runs.jsonl (one JSON line per step) and
+# OUTDIR/partition.svg (its figure), and prints the markdown table of
+# docs/tables.md, stamped with the command, CPU, cores and commit.
 # Usage: scripts/partition-table.sh [ITEMS] [RANKS] [OUTDIR]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-source scripts/env.sh
 items=${1:-1000000}
 ranks=${2:-2}
 out=${3:-out/partition}
-cargo build --release -p experiments >&2
+source scripts/measure-env.sh
 mkdir -p "$out"
+runs=$out/runs.jsonl
+: > "$runs.new"
 for w in uniform blobs hopper; do
   for p in zoltan-rcb zoltan-rib zoltan-hsfc metis rcb; do
-    mpirun --oversubscribe -np "$ranks" target/release/tridem partition --partitioner "$p" \
-      --workload "$w" --items "$items" --steps 3 --every 1 --json --output "$out"
+    mpirun --oversubscribe -np "$ranks" "$tridem" partition --partitioner "$p" \
+      --workload "$w" --items "$items" --steps 3 --every 1 --json >> "$runs.new"
+    echo "partition-table: $w $p done" >&2
   done
 done
+mv "$runs.new" "$runs"
+"$tridem" partition-plot "$runs" --output "$out/partition.svg" >&2
+echo "Measured by \`scripts/partition-table.sh $items $ranks\` on $stamp."
+echo
+echo "| workload | partitioner | step | imbalance | partition s | migrate s | migrated items | migrated MB | ghost items | ghost MB | neighbours | box queries/s |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+awk '
+  # The value of key k in this JSON line (a number or a plain string).
+  function f(k,   m) {
+    if (!match($0, "\"" k "\":\"?[^,\"}]*")) return ""
+    m = substr($0, RSTART, RLENGTH)
+    sub(/^"[^"]*":"?/, "", m)
+    return m
+  }
+  {
+    printf "| %s | %s | %d | %.4f | %.3f | %.3f | %d | %.1f | %d | %.2f | %d | %.1fM |\n",
+      f("workload"), f("partitioner"), f("step"), f("imbalance"), f("partition_s"),
+      f("migrate_s"), f("migrated_items"), f("migrated_bytes") / 1e6, f("ghost_items"),
+      f("ghost_bytes") / 1e6, f("neighbours_max"), f("box_queries_per_s") / 1e6
+  }' "$runs"

@@ -42,13 +42,22 @@ and \"scalar, 1 thread\" rows." \
 section "DEM on one node" "Thread scaling of the 400-particle hopper: time per run, by \
 section, and the reference workload's speed-up in the same minutes (docs/dem.md, \"Threads\")." \
   "tridem scaling scenes/hopper-400.toml --threads 1,$cores --repeat 3 --statistic min"
-section "Partitioners" "Each partitioner on the falling-items workload, 1,000,000 items on 2 \
-ranks, three steps: imbalance, partition and migration time, ghosts (docs/partition.md)." \
-  "mpirun -np 2 --oversubscribe tridem partition --workload hopper --items 1e6 --steps 3 --partitioner zoltan-rcb" \
-  "mpirun -np 2 --oversubscribe tridem partition --workload hopper --items 1e6 --steps 3 --partitioner zoltan-rib" \
-  "mpirun -np 2 --oversubscribe tridem partition --workload hopper --items 1e6 --steps 3 --partitioner zoltan-hsfc" \
-  "mpirun -np 2 --oversubscribe tridem partition --workload hopper --items 1e6 --steps 3 --partitioner metis" \
-  "mpirun -np 2 --oversubscribe tridem partition --workload hopper --items 1e6 --steps 3 --partitioner rcb"
+{
+  echo "## Partitioners"
+  echo
+  echo "Every partitioner on every workload, 1,000,000 items on 2 ranks, three partitioning"
+  echo "steps each: imbalance, partition and migration time, ghosts, box queries"
+  echo "(docs/partition.md). The raw records are \`docs/data/partition-1M-2ranks.jsonl\`."
+  echo
+  scripts/partition-table.sh 1000000 2 out/partition
+  echo
+  echo "![partition time and ghosts](figures/partition-1M-2ranks.svg)"
+  echo
+} >> "$page"
+cp out/partition/runs.jsonl docs/data/partition-1M-2ranks.jsonl
+cp out/partition/partition.svg docs/figures/partition-1M-2ranks.svg
+cp out/partition/partition.png docs/figures/partition-1M-2ranks.png
+echo "Partitioners: done" >&2
 section "DEM across ranks" "The 1,000-particle silo, 600 steps: on one process with all \
 cores as threads, then on 2 ranks of one thread, repartitioning every 20 steps with the native \
 RCB (docs/distributed.md)." \
