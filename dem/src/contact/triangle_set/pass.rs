@@ -341,22 +341,31 @@ mod tests {
     use super::*;
     use crate::scene::Scene;
 
-    fn drop_scene() -> World {
+    /// The drop scene, and its triangles updated at once or followed lazily.
+    fn drop_scene(lazily: bool) -> (World, TriangleSet) {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/drop.toml");
-        Scene::load(&path).unwrap().world
+        let world = Scene::load(&path).unwrap().world;
+        let halos = world.per_body(|m| m.halo);
+        let mut set = TriangleSet::default();
+        if lazily {
+            set.follow_world_lazily(&world, &halos);
+        } else {
+            set.update_from_world(&world, &halos);
+        }
+        (world, set)
     }
 
-    /// A lazily followed set, filled by concurrent passes' tasks, reads the
+    /// A lazily followed set, filled by a pass's concurrent tasks, reads the
     /// same bits as a set updated at once.
     #[test]
     fn filled_groups_read_what_an_eager_update_computes() {
         use rayon::prelude::*;
-        let world = drop_scene();
-        let halos = world.per_body(|m| m.halo);
-        let mut eager = TriangleSet::default();
-        eager.update_from_world(&world, &halos);
-        let mut lazy = TriangleSet::default();
-        lazy.follow_world_lazily(&world, &halos);
+        let (_, eager) = drop_scene(false);
+        let (world, mut lazy) = drop_scene(true);
+        assert!(
+            PassSet::of_current(&lazy).is_none(),
+            "moving bodies are stale"
+        );
         let pass = PassSet::new(&mut lazy);
         let n = pass.groups().len();
         // Every group asked for by several tasks at once, in both orders.
@@ -375,10 +384,7 @@ mod tests {
     #[test]
     #[should_panic(expected = "outside its parts")]
     fn a_pair_outside_its_parts_is_refused() {
-        let world = drop_scene();
-        let halos = world.per_body(|m| m.halo);
-        let mut set = TriangleSet::default();
-        set.update_from_world(&world, &halos);
+        let (world, set) = drop_scene(false);
         let pass = PassSet::of_current(&set).expect("updated at once: all current");
         let mut v = Vec::new();
         let a = pass.fill(0, &world, &mut v).owned();
@@ -394,10 +400,7 @@ mod tests {
     #[test]
     #[should_panic(expected = "another set")]
     fn a_part_of_another_set_is_refused() {
-        let world = drop_scene();
-        let halos = world.per_body(|m| m.halo);
-        let mut one = TriangleSet::default();
-        one.update_from_world(&world, &halos);
+        let (world, one) = drop_scene(false);
         let other = one.clone();
         let (p, q) = (
             PassSet::of_current(&one).unwrap(),
@@ -411,13 +414,10 @@ mod tests {
     }
 
     /// A set with stale groups is filled only by a pass that borrows it
-    /// exclusively.
+    /// exclusively; once all are filled, a shared borrow will do.
     #[test]
     fn a_stale_set_is_not_shared_with_a_pass() {
-        let world = drop_scene();
-        let halos = world.per_body(|m| m.halo);
-        let mut lazy = TriangleSet::default();
-        lazy.follow_world_lazily(&world, &halos);
+        let (world, mut lazy) = drop_scene(true);
         assert!(PassSet::of_current(&lazy).is_none());
         let mut v = Vec::new();
         let pass = PassSet::new(&mut lazy);
