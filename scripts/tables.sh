@@ -2,7 +2,7 @@
 # Regenerates docs/tables.md: the current results table of each area
 # (distance kernels, the DEM on one node, the partitioners, the DEM across
 # ranks, and ranks against threads), each under the command that printed it, stamped with the CPU
-# model, the cores and the commit. A few minutes on two cores.
+# model, the cores and the commit. About ten minutes on two cores.
 # Usage: scripts/tables.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
