@@ -89,7 +89,6 @@ fn methods_on_the_pool<'a>(
     pairs: &'a [(Triangle, Triangle)],
     pool: &'a rayon::ThreadPool,
 ) -> Vec<Measure<'a>> {
-    let isa = Isa::detect();
     [
         (Method::Brute, Fallback::WholeBatch, "exact"),
         (Method::Penalty, Fallback::WholeBatch, "simd"),
@@ -101,22 +100,32 @@ fn methods_on_the_pool<'a>(
         ),
     ]
     .into_iter()
-    .map(|(method, fallback, variant)| {
-        let o = options(args, method, fallback);
-        Measure::new(
-            method.name(),
-            variant,
-            isa.name(),
-            pool.current_num_threads(),
-            Box::new(move |out, stats| {
-                let (counts, seconds) = timed_on_awake_pool(pool, || {
-                    distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
-                });
-                (Some(counts), seconds)
-            }),
-        )
-    })
+    .map(|(method, fallback, variant)| on_pool(args, pairs, pool, method, fallback, variant))
     .collect()
+}
+
+/// One method of `distance_many` on every thread of `pool`.
+fn on_pool<'a>(
+    args: &KernelsArgs,
+    pairs: &'a [(Triangle, Triangle)],
+    pool: &'a rayon::ThreadPool,
+    method: Method,
+    fallback: Fallback,
+    variant: &'static str,
+) -> Measure<'a> {
+    let o = options(args, method, fallback);
+    Measure::new(
+        method.name(),
+        variant,
+        Isa::detect().name(),
+        pool.current_num_threads(),
+        Box::new(move |out, stats| {
+            let (counts, seconds) = timed_on_awake_pool(pool, || {
+                distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
+            });
+            (Some(counts), seconds)
+        }),
+    )
 }
 
 /// SIMD against scalar, one thread: the penalty kernel and brute force on
@@ -199,27 +208,12 @@ fn hybrid_on_one_thread<'a>(
     pairs: &'a [(Triangle, Triangle)],
     single: &'a rayon::ThreadPool,
 ) -> Vec<Measure<'a>> {
-    let isa = Isa::detect();
     [
         (Fallback::WholeBatch, "whole-batch fallback"),
         (Fallback::FailedPairs, "failed-pairs fallback"),
     ]
     .into_iter()
-    .map(|(fallback, variant)| {
-        let o = options(args, Method::Hybrid, fallback);
-        Measure::new(
-            "hybrid",
-            variant,
-            isa.name(),
-            1,
-            Box::new(move |out, stats| {
-                let (counts, seconds) = timed_on_awake_pool(single, || {
-                    distance_many(pairs, &o, out, stats).expect("batch size checked by check_args")
-                });
-                (Some(counts), seconds)
-            }),
-        )
-    })
+    .map(|(fallback, variant)| on_pool(args, pairs, single, Method::Hybrid, fallback, variant))
     .collect()
 }
 

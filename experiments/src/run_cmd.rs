@@ -330,11 +330,16 @@ pub(crate) fn refuse_crossings(scene: &Scene, sim: &Simulation, when: &str) -> C
          simulation.allow_deep_contacts = true lets the run go on",
         scene.body_name(a),
         scene.body_name(b),
-        match crossed.len() {
-            1 => String::new(),
-            n => format!(", as do {} more pairs", n - 1),
-        }
+        and_more(crossed.len())
     )))
+}
+
+/// ", as do N more pairs" after the first of `n` pairs named.
+fn and_more(n: usize) -> String {
+    match n {
+        0 | 1 => String::new(),
+        n => format!(", as do {} more pairs", n - 1),
+    }
 }
 
 /// A new run is refused when bodies start crossing, or when one starts
@@ -354,10 +359,7 @@ pub(crate) fn refuse_overlaps_at_start(scene: &Scene, sim: &Simulation) -> CliRe
          simulation.allow_deep_contacts = true lets the run go on",
         scene.body_name(inner),
         scene.body_name(outer),
-        match enclosed.len() {
-            1 => String::new(),
-            n => format!(", as do {} more pairs", n - 1),
-        }
+        and_more(enclosed.len())
     )))
 }
 

@@ -48,6 +48,12 @@ fn run(ranks: usize, args: &[&str]) -> Ran {
     finish(out, Duration::from_secs(600))
 }
 
+/// The ranks stopped with one message between them.
+fn assert_one_error(r: &Ran) {
+    let messages = r.stderr.matches("tridem: error:").count();
+    assert_eq!(messages, 1, "{}", r.stderr);
+}
+
 fn finish(mut child: std::process::Child, limit: Duration) -> Ran {
     let start = Instant::now();
     loop {
@@ -313,12 +319,7 @@ fn a_bad_scene_ends_every_rank_with_one_message() {
     .unwrap();
     let r = run(3, &["run", bad.to_str().unwrap(), "--quiet"]);
     assert_eq!(r.code, 2, "{}", r.stderr);
-    assert_eq!(
-        r.stderr.matches("tridem: error:").count(),
-        1,
-        "{}",
-        r.stderr
-    );
+    assert_one_error(&r);
     assert!(r.stderr.contains("bad.toml:5"), "{}", r.stderr);
     assert!(!r.stderr.contains("MPI_ABORT"), "{}", r.stderr);
     // A resume from a file that is not a checkpoint: refused, nothing written.
@@ -335,12 +336,7 @@ fn a_bad_scene_ends_every_rank_with_one_message() {
         ],
     );
     assert_eq!(r.code, 2, "{}", r.stderr);
-    assert_eq!(
-        r.stderr.matches("tridem: error:").count(),
-        1,
-        "{}",
-        r.stderr
-    );
+    assert_one_error(&r);
     assert!(!out.exists(), "a refused run created {}", out.display());
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -351,12 +347,7 @@ fn lasting_crossed_contacts_stop_every_rank_with_one_message() {
     let scene = scene.to_str().unwrap();
     let r = run(2, &["run", scene, "--quiet"]);
     assert_eq!(r.code, 1, "{}", r.stderr);
-    assert_eq!(
-        r.stderr.matches("tridem: error:").count(),
-        1,
-        "{}",
-        r.stderr
-    );
+    assert_one_error(&r);
     assert!(r.stderr.contains("100 steps in a row"), "{}", r.stderr);
     let allow = "simulation.allow_deep_contacts=true";
     let r = run(2, &["run", scene, "--quiet", "--set", allow]);
@@ -393,12 +384,7 @@ fn sigterm_checkpoints_and_ends_every_rank() {
     let r = finish(child, Duration::from_secs(120));
     assert_ne!(r.code, 0);
     assert!(r.stderr.contains("stopped by a signal"), "{}", r.stderr);
-    assert_eq!(
-        r.stderr.matches("tridem: error:").count(),
-        1,
-        "{}",
-        r.stderr
-    );
+    assert_one_error(&r);
     // Its checkpoint goes on, on one process, to the same bits as a run
     // that was never stopped.
     let c = out.join("checkpoint.h5");
