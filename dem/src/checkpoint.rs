@@ -32,11 +32,19 @@ impl BodyState {
 }
 
 /// What one effect of the pipeline carries from step to step, as numbers.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct EffectState {
     /// The effect's name in the scene (`friction`, ...).
     pub effect: String,
-    pub values: Vec<f64>,
+    /// Its books ([`Ledger::state`](crate::ledger::Ledger::state)): the
+    /// parts of the exact sums of the energy it stores and of the work it
+    /// has taken (both empty when it keeps no books).
+    pub stored: Vec<f64>,
+    pub taken: Vec<f64>,
+    /// Its per-contact history, rows of `row` numbers
+    /// ([`ContactHistory`](crate::effects::ContactHistory); `row` 0: none).
+    pub row: usize,
+    pub history: Vec<f64>,
 }
 
 /// Everything a [`Simulation`](crate::simulation::Simulation) needs to go on
@@ -79,8 +87,11 @@ impl Checkpoint {
         }
         for e in &self.effects {
             h.bytes(e.effect.as_bytes());
-            h.u64(e.values.len() as u64);
-            e.values.iter().for_each(|&v| h.f64(v));
+            h.u64(e.row as u64);
+            for part in [&e.stored, &e.taken, &e.history] {
+                h.u64(part.len() as u64);
+                part.iter().for_each(|&v| h.f64(v));
+            }
         }
         h.0
     }

@@ -50,11 +50,41 @@ impl ExactSum {
         self.special += other.special;
     }
 
+    /// The sum of the negated terms (exact: the partials stay non-overlapping).
+    pub fn negated(&self) -> ExactSum {
+        ExactSum {
+            partials: self.partials.iter().map(|p| -p).collect(),
+            special: -self.special,
+        }
+    }
+
     /// What travels between ranks: the partials, then the non-finite part.
     pub fn parts(&self) -> Vec<f64> {
         let mut v = self.partials.clone();
         v.push(self.special);
         v
+    }
+
+    /// The sum as canonical parts: the correctly rounded sum, then the
+    /// correctly rounded remainder, and so on until nothing remains (in
+    /// increasing magnitude), then the non-finite part. The same sum gives
+    /// the same parts however its terms were added or split, which
+    /// [`ExactSum::parts`] does not promise; checkpoints store these.
+    pub fn canonical_parts(&self) -> Vec<f64> {
+        let mut rest = self.clone();
+        rest.special = 0.0;
+        let mut parts = Vec::new();
+        loop {
+            let v = rest.value();
+            if v == 0.0 {
+                break;
+            }
+            parts.push(v);
+            rest.add(-v);
+        }
+        parts.reverse();
+        parts.push(self.special);
+        parts
     }
 
     /// The sum whose [`ExactSum::parts`] are `parts`.
@@ -104,27 +134,67 @@ impl ExactSum {
     }
 }
 
-/// An effect's energy books: what it stores now, what it has taken out of
-/// the bodies since the start, and this evaluation's terms of both.
-#[derive(Debug, Clone, Default)]
+/// An effect's energy books, as exact sums over the terms this process
+/// entered: the energy it stores at the last evaluation, and the work it has
+/// taken out of the bodies since the start of the run. Both are kept exact
+/// and rounded only when read, so the books of a run split across ranks
+/// merge (at output steps only) into the same bits as one process's.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Ledger {
-    /// Energy stored at the last evaluation.
-    pub stored: f64,
-    /// Work taken out of the bodies since the start.
-    pub taken: f64,
-    /// This evaluation's terms: of the stored energy, and of the work.
-    pub step_stored: ExactSum,
-    pub step_taken: ExactSum,
+    stored: ExactSum,
+    taken: ExactSum,
 }
 
 impl Ledger {
-    /// Books this evaluation's terms: the stored energy becomes their sum,
-    /// the work grows by theirs.
-    pub fn close(&mut self) {
-        self.stored = self.step_stored.value();
-        self.taken += self.step_taken.value();
-        self.step_stored.clear();
-        self.step_taken.clear();
+    /// A new evaluation: the stored energy is entered afresh.
+    pub fn begin(&mut self) {
+        self.stored.clear();
+    }
+
+    /// A term of the energy stored now.
+    pub fn store(&mut self, energy: f64) {
+        self.stored.add(energy);
+    }
+
+    /// A term of the work taken out of the bodies.
+    pub fn take(&mut self, work: f64) {
+        self.taken.add(work);
+    }
+
+    pub fn stored(&self) -> &ExactSum {
+        &self.stored
+    }
+
+    pub fn taken(&self) -> &ExactSum {
+        &self.taken
+    }
+
+    /// The books as plain numbers ([`ExactSum::canonical_parts`] of both
+    /// sums), for a checkpoint.
+    pub fn state(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.stored.canonical_parts(), self.taken.canonical_parts())
+    }
+
+    /// Takes back what [`Ledger::state`] gave; refused unless every part is
+    /// finite but the last of each (the sum of non-finite terms).
+    pub fn restore(&mut self, stored: &[f64], taken: &[f64]) -> Result<(), String> {
+        for (what, parts) in [("stored energy", stored), ("work taken", taken)] {
+            let [partials @ .., _] = parts else {
+                return Err(format!("the books' {what} has no parts"));
+            };
+            if !partials.iter().all(|p| p.is_finite()) {
+                return Err(format!("the books' {what} holds a non-finite part"));
+            }
+        }
+        self.stored = ExactSum::from_parts(stored);
+        self.taken = ExactSum::from_parts(taken);
+        Ok(())
+    }
+
+    /// Adds another process's books to these.
+    pub fn merge(&mut self, other: &Ledger) {
+        self.stored.merge(&other.stored);
+        self.taken.merge(&other.taken);
     }
 }
 
@@ -166,6 +236,42 @@ mod tests {
             terms[cut..].iter().for_each(|&t| b.add(t));
             b.merge(&ExactSum::from_parts(&a.parts()));
             assert_eq!(b.value().to_bits(), reference.to_bits(), "case {case}");
+        }
+    }
+
+    /// Canonical parts depend on the sum alone: split and merged in any
+    /// order, the same numbers; and they sum back to it.
+    #[test]
+    fn canonical_parts_are_a_function_of_the_sum() {
+        let mut rng = Xoshiro256StarStar::seed_from_u64(11);
+        for case in 0..200 {
+            let n = rng.random_range(1..40);
+            let terms: Vec<f64> = (0..n)
+                .map(|_| rng.random_range(-1.0..1.0) * 2f64.powi(rng.random_range(-80..80)))
+                .collect();
+            let mut whole = ExactSum::default();
+            terms.iter().for_each(|&t| whole.add(t));
+            let cut = rng.random_range(0..=n);
+            let (mut a, mut b) = (ExactSum::default(), ExactSum::default());
+            terms[..cut].iter().rev().for_each(|&t| a.add(t));
+            terms[cut..].iter().for_each(|&t| b.add(t));
+            b.merge(&a);
+            let (p, q) = (whole.canonical_parts(), b.canonical_parts());
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&p), bits(&q), "case {case}");
+            let back = ExactSum::from_parts(&p);
+            assert_eq!(
+                back.value().to_bits(),
+                exact(&terms).to_bits(),
+                "case {case}"
+            );
+            let mut rest = back.clone();
+            rest.merge(&whole.negated());
+            assert_eq!(
+                rest.value(),
+                0.0,
+                "case {case}: the parts are the whole sum"
+            );
         }
     }
 

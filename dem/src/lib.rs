@@ -17,6 +17,7 @@ pub mod checkpoint;
 pub mod contact;
 pub mod distance;
 pub mod effects;
+pub mod frame;
 pub mod integrate;
 pub mod ledger;
 pub mod material;

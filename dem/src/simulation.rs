@@ -2,6 +2,7 @@
 
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
 use crate::effects::{Effect, Forces, RotationParams, StepContext, StepStats};
+use crate::frame::{EnergyBooks, Frame, FrameContact};
 use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
 use crate::timing::{seconds_since, SectionTimes};
@@ -10,6 +11,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::time::Instant;
 
+pub use crate::frame::{EffectEnergy, Energies};
+
 /// Bodies per parallel task of the integration.
 const INTEGRATION_GRAIN: usize = 32;
 
@@ -17,47 +20,6 @@ const INTEGRATION_GRAIN: usize = 32;
 /// body, so a scene of fewer bodies keeps it on one thread (cheaper than
 /// handing half to another).
 const KICK_GRAIN: usize = 1024;
-
-/// Where a run's energy is (J).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Energies {
-    /// Kinetic energy of the particles' translation and rotation.
-    pub translation: f64,
-    pub rotation: f64,
-    /// Per effect, in pipeline order: what it stores now (gravity's
-    /// potential, the springs) and what it has dissipated since the start.
-    pub effects: Vec<EffectEnergy>,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub struct EffectEnergy {
-    pub effect: &'static str,
-    pub stored: f64,
-    pub dissipated: f64,
-}
-
-impl Energies {
-    /// Kinetic plus stored plus dissipated: constant up to the integrator's
-    /// error when the effects' books are right.
-    pub fn total(&self) -> f64 {
-        let effects: f64 = self.effects.iter().map(|e| e.stored + e.dissipated).sum();
-        self.translation + self.rotation + effects
-    }
-}
-
-/// A simulation taken apart ([`Simulation::into_parts`]), for a caller that
-/// steps it in its own way (split across ranks).
-pub struct Parts {
-    pub world: World,
-    pub dt: f64,
-    pub rotation: bool,
-    /// The declared effects, in pipeline order.
-    pub effects: Vec<Box<dyn Effect>>,
-    /// Per shape: the largest distance of a vertex from the body's origin.
-    pub shape_radius: Vec<f64>,
-    /// The forces of the last evaluation.
-    pub forces: Forces,
-}
 
 /// A running simulation.
 pub struct Simulation {
@@ -96,80 +58,19 @@ impl Simulation {
     /// their parameters are the scene's; refused when the checkpoint's bodies,
     /// time step or effects' states do not fit it.
     pub fn resume(scene: &Scene, checkpoint: &Checkpoint) -> Result<Simulation, CheckpointError> {
-        let fail = |why: String| Err(CheckpointError(why));
+        check_checkpoint(scene, checkpoint)?;
         let mut sim = Simulation::pipeline(scene);
         let n = sim.world.bodies.len();
-        if checkpoint.fingerprint != sim.world.fingerprint() {
-            return fail(
-                "the checkpoint was taken of another scene (materials, shapes, bodies or obstacles differ)"
-                    .into(),
-            );
-        }
-        if checkpoint.dt.to_bits() != scene.dt.to_bits() {
-            return fail(format!(
-                "the checkpoint's run stepped by dt = {:e} s, the scene by {:e} s",
-                checkpoint.dt, scene.dt
-            ));
-        }
-        let counts = [
-            checkpoint.bodies.len(),
-            checkpoint.force.len(),
-            checkpoint.torque.len(),
-        ];
-        if counts != [n; 3] {
-            return fail(format!(
-                "the scene has {n} bodies, the checkpoint {} bodies, {} forces and {} torques",
-                counts[0], counts[1], counts[2]
-            ));
-        }
-        let finite = |s: &BodyState| {
-            s.x.is_finite() && s.q.is_finite() && s.v.is_finite() && s.l.is_finite()
-        };
-        if let Some(i) = checkpoint.bodies.iter().position(|s| !finite(s)) {
-            return fail(format!("body {i}'s state in the checkpoint is not finite"));
-        }
-        let loads = checkpoint.force.iter().zip(&checkpoint.torque);
-        if let Some(i) = loads
-            .clone()
-            .position(|(f, t)| !f.is_finite() || !t.is_finite())
-        {
-            return fail(format!(
-                "the force on body {i} in the checkpoint is not finite"
-            ));
-        }
-        if !(checkpoint.time.is_finite()) {
-            return fail(format!(
-                "the checkpoint's time {} is not finite",
-                checkpoint.time
-            ));
-        }
+        sim.forces.reset(n);
         for (b, s) in sim.world.bodies.iter_mut().zip(&checkpoint.bodies) {
             (b.x, b.q, b.v, b.l) = (s.x, s.q, s.v, s.l);
         }
         sim.world.time = checkpoint.time;
         sim.world.step = checkpoint.step;
-        sim.forces.force.clone_from(&checkpoint.force);
-        sim.forces.torque.clone_from(&checkpoint.torque);
-        let mut states = checkpoint.effects.iter();
-        for e in &mut sim.effects {
-            if e.state().is_none() {
-                continue;
-            }
-            let Some(state) = states.next().filter(|s| s.effect == e.name()) else {
-                return fail(format!(
-                    "the scene declares the {} effect, whose state the checkpoint lacks",
-                    e.name()
-                ));
-            };
-            e.restore(&state.values, &sim.world)
-                .map_err(CheckpointError)?;
+        for (i, (f, t)) in checkpoint.force.iter().zip(&checkpoint.torque).enumerate() {
+            sim.forces.set(i, *f, *t);
         }
-        if let Some(extra) = states.next() {
-            return fail(format!(
-                "the checkpoint holds the state of the {} effect, which the scene does not declare (or not in this order)",
-                extra.effect
-            ));
-        }
+        restore_effects(&mut sim.effects, &checkpoint.effects, n)?;
         // Neighbour lists and caches are rebuilt from the restored bodies.
         sim.forget_motion();
         Ok(sim)
@@ -177,13 +78,7 @@ impl Simulation {
 
     /// The state [`Simulation::resume`] goes on from.
     pub fn checkpoint(&self) -> Checkpoint {
-        let effects = self.effects.iter().filter_map(|e| {
-            let values = e.state()?;
-            Some(EffectState {
-                effect: e.name().to_string(),
-                values,
-            })
-        });
+        let (force, torque) = self.forces.all();
         Checkpoint {
             time: self.world.time,
             step: self.world.step,
@@ -192,9 +87,9 @@ impl Simulation {
             bodies: self.world.bodies.iter().map(BodyState::of).collect(),
             // Obstacles do not move: what pushes on them is no part of the
             // state (and split across ranks, no one rank sums it).
-            force: self.loads(&self.forces.force),
-            torque: self.loads(&self.forces.torque),
-            effects: effects.collect(),
+            force: self.loads(force),
+            torque: self.loads(torque),
+            effects: effect_states(&self.effects),
         }
     }
 
@@ -210,16 +105,8 @@ impl Simulation {
     /// The effects the scene declares, on the scene's world; forces not yet evaluated.
     fn pipeline(scene: &Scene) -> Simulation {
         let world = scene.world.clone();
-        let effects: Vec<Box<dyn Effect>> = scene
-            .effects
-            .iter()
-            .filter_map(|e| e.build(scene))
-            .collect();
-        let shape_radius = world
-            .shapes
-            .iter()
-            .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
-            .collect();
+        let effects = build_effects(scene);
+        let shape_radius = shape_radii(&world);
         let mut sim = Simulation {
             world,
             dt: scene.dt,
@@ -230,6 +117,9 @@ impl Simulation {
             forces: Forces::default(),
             ctx: StepContext {
                 dt: scene.dt,
+                bodies: (0..scene.world.bodies.len())
+                    .filter(|&i| !scene.world.bodies[i].is_static())
+                    .collect(),
                 ..StepContext::default()
             },
             totals: StepStats::default(),
@@ -237,28 +127,6 @@ impl Simulation {
         };
         sim.timings = SectionTimes::for_effects(&sim.effects);
         sim
-    }
-
-    /// The simulation's parts: its world, effects (with their state) and
-    /// the forces of its last evaluation.
-    pub fn into_parts(self) -> Parts {
-        Parts {
-            world: self.world,
-            dt: self.dt,
-            rotation: self.rotation,
-            effects: self.effects,
-            shape_radius: self.shape_radius,
-            forces: self.forces,
-        }
-    }
-
-    /// Makes `contacts`, with the force on body a of each, the last
-    /// evaluation's (for output of a run stepped elsewhere, whose state this
-    /// simulation was resumed from).
-    pub fn show_contacts(&mut self, contacts: Vec<crate::contact::Contact>, forces: Vec<DVec3>) {
-        assert_eq!(contacts.len(), forces.len(), "a force per contact");
-        self.ctx.contacts = contacts;
-        self.ctx.contact_force = forces;
     }
 
     /// Names of the effects in the pipeline, in order (rotation is an integration switch).
@@ -278,10 +146,8 @@ impl Simulation {
         // fail loudly, never skip an effect.
         for (k, e) in self.effects.iter_mut().enumerate() {
             let start = Instant::now();
+            self.forces.begin_effect(k);
             e.apply(&self.world, &mut self.ctx, &mut self.forces);
-            if let Some(ledger) = e.ledger_mut() {
-                ledger.close();
-            }
             self.timings.effects[k].1 += seconds_since(start);
         }
         self.timings.detection += self.ctx.detection_times;
@@ -292,7 +158,7 @@ impl Simulation {
         let (h, rot) = (self.dt, self.rotation);
         let start = Instant::now();
         // Bodies are independent here; small scenes stay on one thread.
-        let (forces, radius) = (&self.forces, &self.shape_radius);
+        let ((force, torque), radius) = (self.forces.all(), &self.shape_radius);
         // The largest distance any point of a body moved: the max of exact
         // per-body bounds, the same on any thread count.
         let moved = self
@@ -302,7 +168,7 @@ impl Simulation {
             .enumerate()
             .with_min_len(INTEGRATION_GRAIN)
             .map(|(i, b)| {
-                half_kick(b, forces.force[i], forces.torque[i], h, rot);
+                half_kick(b, force[i], torque[i], h, rot);
                 let before = (b.x, b.q);
                 drift(b, h, rot);
                 travel_bound(before, b, radius[b.shape])
@@ -312,14 +178,14 @@ impl Simulation {
         self.timings.integration += seconds_since(start);
         self.evaluate_forces();
         let start = Instant::now();
-        let forces = &self.forces;
+        let (force, torque) = self.forces.all();
         self.world
             .bodies
             .par_iter_mut()
             .enumerate()
             .with_min_len(KICK_GRAIN)
             .for_each(|(i, b)| {
-                half_kick(b, forces.force[i], forces.torque[i], h, rot);
+                half_kick(b, force[i], torque[i], h, rot);
             });
         self.timings.integration += seconds_since(start);
         self.world.time += h;
@@ -334,33 +200,27 @@ impl Simulation {
         self.motion_unknown = true;
     }
 
-    /// Kinetic plus the potential energy the effects store.
+    /// Kinetic plus the energy the effects store.
     pub fn total_energy(&self) -> f64 {
-        self.world.kinetic_energy()
-            + self
-                .effects
-                .iter()
-                .map(|e| e.potential_energy(&self.world, &self.ctx))
-                .sum::<f64>()
+        let e = self.energies();
+        e.translation + e.rotation + e.effects.iter().map(|x| x.stored).sum::<f64>()
     }
 
     /// Where the run's energy is: kinetic, stored by each effect, and
     /// dissipated by each effect since the start.
     pub fn energies(&self) -> Energies {
-        let (mut translation, mut rotation) = (0.0, 0.0);
-        for b in self.world.bodies.iter().filter(|b| !b.is_static()) {
-            translation += 0.5 * b.mass * b.v.length_squared();
-            rotation += 0.5 * b.l.dot(b.omega());
-        }
-        let effects = self.effects.iter().map(|e| EffectEnergy {
-            effect: e.name(),
-            stored: e.potential_energy(&self.world, &self.ctx),
-            dissipated: e.dissipated(),
-        });
-        Energies {
-            translation,
-            rotation,
-            effects: effects.collect(),
+        energy_books(&self.world, &self.ctx, &self.effects).rounded()
+    }
+
+    /// The present state as the output shows it.
+    pub fn frame(&self) -> Frame {
+        let world = &self.world;
+        Frame {
+            time: world.time,
+            step: world.step,
+            bodies: world.bodies.iter().map(BodyState::of).collect(),
+            contacts: frame_contacts(world, &self.ctx),
+            energies: self.energies(),
         }
     }
 
@@ -416,4 +276,180 @@ impl Simulation {
         }
         out
     }
+}
+
+/// The effects' states for a checkpoint: those that keep books or history.
+pub fn effect_states(effects: &[Box<dyn Effect>]) -> Vec<EffectState> {
+    effects
+        .iter()
+        .filter(|e| e.ledger().is_some() || e.history().is_some())
+        .map(|e| {
+            let (stored, taken) = e.ledger().map(|l| l.state()).unwrap_or_default();
+            EffectState {
+                effect: e.name().to_string(),
+                stored,
+                taken,
+                row: e.history().map_or(0, |h| h.row_len()),
+                history: e.history().map(|h| h.rows()).unwrap_or_default(),
+            }
+        })
+        .collect()
+}
+
+/// Restores `effects` from a checkpoint's states of a scene of `bodies`
+/// bodies: each stateful effect in pipeline order, refused when a state is
+/// missing, extra or does not fit.
+pub fn restore_effects(
+    effects: &mut [Box<dyn Effect>],
+    states: &[EffectState],
+    bodies: usize,
+) -> Result<(), CheckpointError> {
+    let fail = |why: String| Err(CheckpointError(why));
+    let mut states = states.iter();
+    for e in effects.iter_mut() {
+        if e.ledger().is_none() && e.history().is_none() {
+            continue;
+        }
+        let Some(state) = states.next().filter(|s| s.effect == e.name()) else {
+            return fail(format!(
+                "the scene declares the {} effect, whose state the checkpoint lacks",
+                e.name()
+            ));
+        };
+        let name = e.name();
+        let within = |why: String| CheckpointError(format!("the {name} effect's state: {why}"));
+        match e.ledger_mut() {
+            Some(l) => l.restore(&state.stored, &state.taken).map_err(within)?,
+            None if state.stored.is_empty() && state.taken.is_empty() => {}
+            None => return fail(format!("the {name} effect keeps no books")),
+        }
+        match e.history_mut() {
+            Some(h) if state.row == h.row_len() => {
+                h.take_rows(&mut |_, _| true);
+                h.add_rows(&state.history, bodies).map_err(within)?;
+            }
+            Some(h) => {
+                return fail(format!(
+                    "the {name} effect's history has rows of {} numbers, the checkpoint's {}",
+                    h.row_len(),
+                    state.row
+                ))
+            }
+            None if state.history.is_empty() => {}
+            None => return fail(format!("the {name} effect keeps no history")),
+        }
+    }
+    if let Some(extra) = states.next() {
+        return fail(format!(
+            "the checkpoint holds the state of the {} effect, which the scene does not declare (or not in this order)",
+            extra.effect
+        ));
+    }
+    Ok(())
+}
+
+/// The energy books of `ctx.bodies` and of the effects' share of the
+/// contacts: exact sums, merged across ranks before they are rounded.
+pub fn energy_books(world: &World, ctx: &StepContext, effects: &[Box<dyn Effect>]) -> EnergyBooks {
+    let mut books = EnergyBooks::default();
+    for &i in &ctx.bodies {
+        let b = &world.bodies[i];
+        books.translation.add(0.5 * b.mass * b.v.length_squared());
+        books.rotation.add(0.5 * b.l.dot(b.omega()));
+    }
+    books.effects = effects
+        .iter()
+        .map(|e| (e.name(), e.books(world, ctx)))
+        .collect();
+    books
+}
+
+/// The contacts of the last evaluation as the output shows them (bodies by id).
+pub fn frame_contacts(world: &World, ctx: &StepContext) -> Vec<FrameContact> {
+    let force = |pairs: &[crate::effects::PairForce], k: usize| {
+        pairs.get(k).map_or(DVec3::ZERO, |p| p.force)
+    };
+    ctx.contacts
+        .iter()
+        .enumerate()
+        .map(|(k, c)| FrameContact {
+            a: world.id(c.a),
+            b: world.id(c.b),
+            point: c.point,
+            normal: c.normal,
+            depth: c.depth,
+            normal_force: force(&ctx.normal_pairs, k),
+            tangential_force: force(&ctx.tangential_pairs, k),
+        })
+        .collect()
+}
+
+/// Whether `checkpoint` was taken of a run of `scene` and holds a state to go
+/// on from: the same scene (fingerprint), time step and bodies, every number
+/// finite. The effects' states are checked as they are restored.
+pub fn check_checkpoint(scene: &Scene, checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
+    let fail = |why: String| Err(CheckpointError(why));
+    let n = scene.world.bodies.len();
+    if checkpoint.fingerprint != scene.world.fingerprint() {
+        return fail(
+            "the checkpoint was taken of another scene (materials, shapes, bodies or obstacles differ)"
+                .into(),
+        );
+    }
+    if checkpoint.dt.to_bits() != scene.dt.to_bits() {
+        return fail(format!(
+            "the checkpoint's run stepped by dt = {:e} s, the scene by {:e} s",
+            checkpoint.dt, scene.dt
+        ));
+    }
+    let counts = [
+        checkpoint.bodies.len(),
+        checkpoint.force.len(),
+        checkpoint.torque.len(),
+    ];
+    if counts != [n; 3] {
+        return fail(format!(
+            "the scene has {n} bodies, the checkpoint {} bodies, {} forces and {} torques",
+            counts[0], counts[1], counts[2]
+        ));
+    }
+    let finite =
+        |s: &BodyState| s.x.is_finite() && s.q.is_finite() && s.v.is_finite() && s.l.is_finite();
+    if let Some(i) = checkpoint.bodies.iter().position(|s| !finite(s)) {
+        return fail(format!("body {i}'s state in the checkpoint is not finite"));
+    }
+    let loads = checkpoint.force.iter().zip(&checkpoint.torque);
+    if let Some(i) = loads
+        .clone()
+        .position(|(f, t)| !f.is_finite() || !t.is_finite())
+    {
+        return fail(format!(
+            "the force on body {i} in the checkpoint is not finite"
+        ));
+    }
+    if !(checkpoint.time.is_finite()) {
+        return fail(format!(
+            "the checkpoint's time {} is not finite",
+            checkpoint.time
+        ));
+    }
+    Ok(())
+}
+
+/// The effects `scene` declares, in pipeline order, with no state yet.
+pub fn build_effects(scene: &Scene) -> Vec<Box<dyn Effect>> {
+    scene
+        .effects
+        .iter()
+        .filter_map(|e| e.build(scene))
+        .collect()
+}
+
+/// Per shape: the largest distance of a vertex from the body's origin.
+pub fn shape_radii(world: &World) -> Vec<f64> {
+    world
+        .shapes
+        .iter()
+        .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
+        .collect()
 }

@@ -12,11 +12,26 @@ pub struct World {
     pub shapes: Vec<TriMesh>,
     pub materials: Vec<Material>,
     pub bodies: Vec<Body>,
+    /// Each body's id in the whole scene, increasing (empty: a body's id is
+    /// its index). A rank of a split run holds some of the scene's bodies,
+    /// in the scene's order; what outlives a step (a contact's name, the
+    /// output) names bodies by id.
+    pub ids: Vec<u32>,
     pub time: f64,
     pub step: u64,
 }
 
 impl World {
+    /// Body `i`'s id in the whole scene.
+    #[inline]
+    pub fn id(&self, i: usize) -> u32 {
+        if self.ids.is_empty() {
+            i as u32
+        } else {
+            self.ids[i]
+        }
+    }
+
     /// A material parameter for every body (0 where the material lacks it;
     /// the scene has checked that declared effects find what they need).
     pub fn per_body(&self, param: fn(&Material) -> Option<f64>) -> Vec<f64> {

@@ -30,7 +30,7 @@ fn friction_springs(c: &Checkpoint) -> usize {
     c.effects
         .iter()
         .find(|e| e.effect == "friction")
-        .map_or(0, |e| e.values.len() / 5)
+        .map_or(0, |e| e.history.len() / e.row.max(1))
 }
 
 /// Steps the hopper until grains touch the walls and each other, so that the
@@ -91,8 +91,8 @@ fn forces_and_friction_springs_are_part_of_the_state() {
     let mut no_springs = checkpoint.clone();
     for e in &mut no_springs.effects {
         if e.effect == "friction" {
-            // The work and the springs' energy stay; the springs go.
-            e.values.truncate(2);
+            // The books stay; the springs go.
+            e.history.clear();
         }
     }
     let mut runs: Vec<Simulation> = [no_forces, no_springs]
@@ -167,7 +167,7 @@ fn a_checkpoint_that_does_not_fit_the_scene_is_refused() {
         .iter_mut()
         .find(|e| e.effect == "friction")
         .unwrap();
-    friction.values = vec![0.0, 0.0, 4.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+    friction.history = vec![0.0, 0.0, 4.0, 2.0, 0.0, 0.0, 0.0, 0.0];
     let why = refusal(&scene, &bad_pair);
     assert!(why.contains("a < b"), "{why}");
 }

@@ -37,7 +37,10 @@ fn sections_cover_the_pipeline_and_add_up_within_the_wall_time() {
     );
     let contact = t.effects.iter().find(|e| e.0 == "contact").unwrap().1;
     let d = &t.detection;
-    assert!(d.triangle_update > 0.0 && d.broad_phase > 0.0 && d.narrow_phase > 0.0);
+    assert!(
+        d.triangle_update > 0.0 && d.broad_phase > 0.0 && d.narrow_phase > 0.0,
+        "{d:?}"
+    );
     assert!(
         d.total() <= contact,
         "detection {d:?} outside contact {contact}"

@@ -1,44 +1,43 @@
-//! Ghost bodies: copies of other ranks' bodies within contact reach of this
-//! rank's own, sent every step.
+//! Ghost bodies: copies of other ranks' particles within contact reach of
+//! this rank's own, and the messages that keep them current.
 //!
-//! **Who gets what.** Each rank's *reach* is the union of its bodies'
-//! bounding boxes (a sphere about the centre of mass of the shape's radius),
-//! each inflated by the body's halo and half the skin; a body goes to every
-//! other rank whose reach its own inflated box overlaps. So the test is per
-//! body, with the body's own size and halo (a large body reaches far, a small
-//! one near), and against where the other rank's bodies actually are, not
-//! the region the partitioner drew: it holds for any partitioner, also one
-//! whose regions are not boxes. Obstacles are on every rank and never sent.
+//! **Who gets what.** Each rank's *reach* is the union of its particles'
+//! boxes (a sphere about the centre of mass of the shape's radius), each
+//! inflated by the particle's halo and half the skin; a particle goes to
+//! every other rank whose reach its own inflated box overlaps. The test is
+//! per body, against where the other rank's particles actually are, not the
+//! region a partitioner drew: it holds for any partitioner, also one whose
+//! regions are not boxes. The lists are symmetric: if rank r sends a body to
+//! s, s sends one to r (the two boxes that overlap belong one to each), so
+//! the per-step messages go both ways between the same neighbours.
 //!
 //! **When.** The lists hold while no body has moved farther than half the
-//! skin since they were drawn (both boxes were inflated by that much); the
-//! caller redraws them then, and after every migration. In between, only the
-//! bodies' motions travel, in the order both sides agreed on when the lists
-//! were drawn: 13 numbers per ghost, no names.
+//! skin since they were drawn (every box was inflated by that much); they
+//! are drawn anew then, and after a migration. Drawing them sends each new
+//! ghost whole ([`BodyRecord`]); in between, only motions travel, 13 numbers
+//! per ghost, in the order both sides agreed on (increasing id), no names.
+//!
+//! **Back to the owners.** A contact between an owned particle and a ghost
+//! is computed once, on the rank owning the lower id. The force terms it puts
+//! on the ghost travel back to the ghost's owner ([`return_terms`]), which
+//! sums them in one process's order (see `forces`).
 
-use crate::records::Motion;
+use crate::records::{BodyRecord, Motion, TermRecord};
 use dem::contact::Bounds;
 use dem::world::World;
 use glam::DVec3;
+use mpi::point_to_point::MatchedReceiveVec;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
 use partition::comm::{all_gather_v, all_to_all_v};
 use std::time::Instant;
 
-/// Tag of the per-step ghost messages.
+/// Tags of the per-step messages.
 const MOTION_TAG: i32 = 0x6d6f;
+const TERM_TAG: i32 = 0x7465;
 
-/// The bodies this rank sends to and receives from each rank.
-#[derive(Debug, Clone, Default)]
-pub struct GhostLists {
-    /// Per rank: owned bodies sent there, in increasing id.
-    pub send: Vec<Vec<usize>>,
-    /// Per rank: the bodies received from there, in the sender's order.
-    pub receive: Vec<Vec<usize>>,
-}
-
-/// The box of body i: a sphere of its shape's radius about its centre of
+/// The box of body `i`: a sphere of its shape's radius about its centre of
 /// mass, inflated by `pad`.
 pub fn body_box(world: &World, radius: &[f64], i: usize, pad: f64) -> Bounds {
     let b = &world.bodies[i];
@@ -49,71 +48,117 @@ pub fn body_box(world: &World, radius: &[f64], i: usize, pad: f64) -> Bounds {
     }
 }
 
-impl GhostLists {
-    /// Draws the lists (collective): `owned` bodies of this rank, boxes
-    /// inflated by each body's halo plus `pad` (half the skin).
-    pub fn draw(
-        comm: &SimpleCommunicator,
-        world: &World,
-        radius: &[f64],
-        halos: &[f64],
-        owned: &[usize],
-        pad: f64,
-    ) -> GhostLists {
-        let size = comm.size() as usize;
-        let me = comm.rank() as usize;
-        let boxes: Vec<Bounds> = owned
-            .iter()
-            .map(|&i| body_box(world, radius, i, halos[i] + pad))
-            .collect();
-        let reach = boxes.iter().fold(Bounds::EMPTY, |u, b| u.union(b));
-        let mine = [
-            reach.lo.x, reach.lo.y, reach.lo.z, reach.hi.x, reach.hi.y, reach.hi.z,
-        ];
-        let all: Vec<f64> = all_gather_v(comm, &mine);
-        let reaches: Vec<Bounds> = all
-            .chunks_exact(6)
-            .map(|c| Bounds {
-                lo: DVec3::new(c[0], c[1], c[2]),
-                hi: DVec3::new(c[3], c[4], c[5]),
-            })
-            .collect();
-        let mut send = vec![Vec::new(); size];
-        for (&i, b) in owned.iter().zip(&boxes) {
-            for (r, reach) in reaches.iter().enumerate() {
-                if r != me && !reach.is_empty() && reach.overlaps(b) {
-                    send[r].push(i);
-                }
-            }
-        }
-        let counts: Vec<Count> = send.iter().map(|s| s.len() as Count).collect();
-        let ids: Vec<u64> = send.iter().flatten().map(|&i| i as u64).collect();
-        let (got, got_counts) = all_to_all_v(comm, &ids, &counts);
-        let mut receive = Vec::with_capacity(size);
-        let mut rest = &got[..];
-        for &c in &got_counts {
-            let (head, tail) = rest.split_at(c as usize);
-            receive.push(head.iter().map(|&i| i as usize).collect());
-            rest = tail;
-        }
-        GhostLists { send, receive }
-    }
+/// The ranks this rank exchanges with each step, and whom with what.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GhostLists {
+    /// Per neighbour (increasing rank): the owned bodies sent there, by
+    /// index, in increasing id.
+    pub send: Vec<(i32, Vec<usize>)>,
+    /// Per neighbour (increasing rank): the ghosts received from there, by
+    /// index, in increasing id.
+    pub recv: Vec<(i32, Vec<usize>)>,
+}
 
+impl GhostLists {
     /// Ghosts this rank holds.
     pub fn received(&self) -> usize {
-        self.receive.iter().map(Vec::len).sum()
+        self.recv.iter().map(|r| r.1.len()).sum()
     }
 
     /// Ghosts this rank sends (one per body and receiving rank).
     pub fn sent(&self) -> usize {
-        self.send.iter().map(Vec::len).sum()
+        self.send.iter().map(|s| s.1.len()).sum()
     }
+}
 
-    /// Every ghost body's id, in increasing order.
-    pub fn ghost_ids(&self) -> Vec<usize> {
-        let mut ids: Vec<usize> = self.receive.iter().flatten().copied().collect();
-        ids.sort_unstable();
-        ids
+/// What drawing the lists brought: the reach of this rank, the ids it sends
+/// to each neighbour, and the ghosts that arrived, whole.
+pub struct Drawn {
+    pub reach: Bounds,
+    /// Per neighbour (increasing rank): ids of owned bodies sent there.
+    pub send: Vec<(i32, Vec<u32>)>,
+    /// Per neighbour (increasing rank): the ghosts from there, in increasing id.
+    pub arrived: Vec<(i32, Vec<BodyRecord>)>,
+}
+
+/// The union of the boxes of `owned`, each inflated by its halo and `pad`.
+pub fn reach(world: &World, radius: &[f64], halos: &[f64], owned: &[usize], pad: f64) -> Bounds {
+    owned.iter().fold(Bounds::EMPTY, |u, &i| {
+        u.union(&body_box(world, radius, i, halos[i] + pad))
+    })
+}
+
+/// For each owned body (inflated box `boxes[k]`), the ranks other than `me`
+/// whose reach it overlaps; per rank, the positions in `boxes` it sends.
+pub fn sends(me: usize, boxes: &[Bounds], reaches: &[Bounds]) -> Vec<Vec<usize>> {
+    let mut send = vec![Vec::new(); reaches.len()];
+    for (k, b) in boxes.iter().enumerate() {
+        for (r, reach) in reaches.iter().enumerate() {
+            if r != me && !reach.is_empty() && reach.overlaps(b) {
+                send[r].push(k);
+            }
+        }
+    }
+    send
+}
+
+/// Draws the lists (collective): every rank's reach goes to every rank, each
+/// rank sends its particles within others' reach, whole.
+pub fn draw(
+    comm: &SimpleCommunicator,
+    world: &World,
+    radius: &[f64],
+    halos: &[f64],
+    owned: &[usize],
+    pad: f64,
+) -> Drawn {
+    let me = comm.rank() as usize;
+    let boxes: Vec<Bounds> = owned
+        .iter()
+        .map(|&i| body_box(world, radius, i, halos[i] + pad))
+        .collect();
+    let mine = boxes.iter().fold(Bounds::EMPTY, |u, b| u.union(b));
+    let flat = [
+        mine.lo.x, mine.lo.y, mine.lo.z, mine.hi.x, mine.hi.y, mine.hi.z,
+    ];
+    let reaches: Vec<Bounds> = all_gather_v(comm, &flat)
+        .chunks_exact(6)
+        .map(|c| Bounds {
+            lo: DVec3::new(c[0], c[1], c[2]),
+            hi: DVec3::new(c[3], c[4], c[5]),
+        })
+        .collect();
+    let per_rank = sends(me, &boxes, &reaches);
+    let counts: Vec<Count> = per_rank.iter().map(|s| s.len() as Count).collect();
+    let zero = DVec3::ZERO;
+    let records: Vec<BodyRecord> = per_rank
+        .iter()
+        .flatten()
+        .map(|&k| {
+            let i = owned[k];
+            BodyRecord::of(world.id(i), &world.bodies[i], zero, zero)
+        })
+        .collect();
+    let (got, got_counts) = all_to_all_v(comm, &records, &counts);
+    let mut arrived = Vec::new();
+    let mut rest = &got[..];
+    for (r, &c) in got_counts.iter().enumerate() {
+        let (head, tail) = rest.split_at(c as usize);
+        rest = tail;
+        if c > 0 {
+            arrived.push((r as i32, head.to_vec()));
+        }
+    }
+    let send = per_rank
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !s.is_empty())
+        .map(|(r, s)| (r as i32, s.iter().map(|&k| world.id(owned[k])).collect()))
+        .collect();
+    Drawn {
+        reach: mine,
+        send,
+        arrived,
     }
 }
 
@@ -147,74 +192,166 @@ impl Exchange {
     }
 }
 
-/// What [`exchange_motions_during`] received and how long it waited.
+/// What [`exchange_motions`] received, and how long it waited.
 pub struct Received<R> {
-    /// Per rank, the motions of `GhostLists::receive[r]`, in that order.
+    /// Per neighbour of `GhostLists::recv`, the motions of its ghosts, in order.
     pub motions: Vec<Vec<Motion>>,
     pub work: R,
-    /// Seconds spent waiting for messages after `work` (nonblocking), or
-    /// for the whole exchange (blocking).
+    /// Seconds inside the call that completes the exchange: the same
+    /// measure in both modes (after the work when nonblocking, before it
+    /// when blocking).
     pub wait: f64,
+    /// Seconds packing and posting the messages.
+    pub post: f64,
 }
 
 /// Sends the motions of the listed bodies to their ranks and receives the
 /// ghosts', running `work` meanwhile (nonblocking) or after (blocking).
+/// `work` is handed a `progress` to call between pieces of its work: it
+/// tests the posted requests, so that messages past the eager limit move
+/// during the work and not only inside the final wait.
 ///
 /// The requests live in an rsmpi scope, which ends only once each has
 /// completed, so no buffer is freed or read while MPI still writes it.
-pub fn exchange_motions_during<R>(
+pub fn exchange_motions<R>(
     comm: &SimpleCommunicator,
     lists: &GhostLists,
     world: &World,
     mode: Exchange,
-    work: impl FnOnce() -> R,
+    work: impl FnOnce(&mut dyn FnMut()) -> R,
 ) -> Received<R> {
+    let start = Instant::now();
     let outbox: Vec<Vec<Motion>> = lists
         .send
         .iter()
-        .map(|ids| ids.iter().map(|&i| Motion::of(&world.bodies[i])).collect())
+        .map(|(_, ids)| ids.iter().map(|&i| Motion::of(&world.bodies[i])).collect())
         .collect();
     let mut inbox: Vec<Vec<Motion>> = lists
-        .receive
+        .recv
         .iter()
-        .map(|ids| vec![Motion::default(); ids.len()])
+        .map(|(_, ids)| vec![Motion::default(); ids.len()])
         .collect();
     let mut wait = 0.0;
+    let mut post = 0.0;
     let out = mpi::request::scope(|scope| {
         let mut requests: Vec<_> = inbox
             .iter_mut()
-            .enumerate()
-            .filter(|(_, b)| !b.is_empty())
-            .map(|(r, b)| {
-                comm.process_at_rank(r as i32)
-                    .immediate_receive_into_with_tag(scope, &mut b[..], MOTION_TAG)
+            .zip(&lists.recv)
+            .map(|(b, &(r, _))| {
+                Some(comm.process_at_rank(r).immediate_receive_into_with_tag(
+                    scope,
+                    &mut b[..],
+                    MOTION_TAG,
+                ))
             })
             .collect();
-        for (r, b) in outbox.iter().enumerate().filter(|(_, b)| !b.is_empty()) {
-            requests.push(comm.process_at_rank(r as i32).immediate_send_with_tag(
+        for (b, &(r, _)) in outbox.iter().zip(&lists.send) {
+            requests.push(Some(comm.process_at_rank(r).immediate_send_with_tag(
                 scope,
                 &b[..],
                 MOTION_TAG,
-            ));
+            )));
         }
-        if mode == Exchange::Blocking {
+        post = start.elapsed().as_secs_f64();
+        let complete = |requests: &mut Vec<Option<_>>| {
             let start = Instant::now();
-            requests.drain(..).for_each(|r| {
-                r.wait();
-            });
-            wait = start.elapsed().as_secs_f64();
+            for r in requests.iter_mut() {
+                if let Some(r) = r.take() {
+                    mpi::request::Request::wait(r);
+                }
+            }
+            start.elapsed().as_secs_f64()
+        };
+        if mode == Exchange::Blocking {
+            wait = complete(&mut requests);
         }
-        let out = work();
-        let start = Instant::now();
-        requests.into_iter().for_each(|r| {
-            r.wait();
+        let out = work(&mut || {
+            for slot in requests.iter_mut() {
+                if let Some(r) = slot.take() {
+                    *slot = r.test().err();
+                }
+            }
         });
-        wait += start.elapsed().as_secs_f64();
+        if mode == Exchange::Nonblocking {
+            wait = complete(&mut requests);
+        }
         out
     });
     Received {
         motions: inbox,
         work: out,
         wait,
+        post,
+    }
+}
+
+/// Sends each neighbour the force terms on its particles computed here
+/// (`outgoing[k]` to `lists.recv[k]`'s rank), runs `meanwhile`, then receives
+/// the terms on this rank's particles from every rank it sends ghosts to.
+/// Returns what arrived and the seconds spent waiting for it.
+pub fn return_terms(
+    comm: &SimpleCommunicator,
+    lists: &GhostLists,
+    outgoing: &[Vec<TermRecord>],
+    meanwhile: impl FnOnce(),
+) -> (Vec<TermRecord>, f64) {
+    let mut arrived = Vec::new();
+    let mut wait = 0.0;
+    mpi::request::scope(|scope| {
+        let sends: Vec<_> = outgoing
+            .iter()
+            .zip(&lists.recv)
+            .map(|(terms, &(r, _))| {
+                comm.process_at_rank(r)
+                    .immediate_send_with_tag(scope, &terms[..], TERM_TAG)
+            })
+            .collect();
+        meanwhile();
+        let start = Instant::now();
+        for &(r, _) in &lists.send {
+            let (terms, _) = comm
+                .process_at_rank(r)
+                .matched_probe_with_tag(TERM_TAG)
+                .matched_receive_vec::<TermRecord>();
+            arrived.extend(terms);
+        }
+        for s in sends {
+            s.wait();
+        }
+        wait = start.elapsed().as_secs_f64();
+    });
+    (arrived, wait)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(lo: [f64; 3], size: f64) -> Bounds {
+        let lo = DVec3::from_array(lo);
+        Bounds {
+            lo,
+            hi: lo + DVec3::splat(size),
+        }
+    }
+
+    /// A body goes to each other rank whose reach its box overlaps, never to
+    /// its own, never to a rank with no particles (an empty reach).
+    #[test]
+    fn a_body_goes_where_its_box_meets_another_ranks_reach() {
+        let boxes = [
+            cube([0.0, 0.0, 0.0], 1.0), // inside rank 0's own reach only
+            cube([1.9, 0.0, 0.0], 0.2), // touches rank 1's reach
+            cube([1.9, 1.9, 1.9], 0.5), // touches ranks 1 and 3
+            cube([9.0, 9.0, 9.0], 0.1), // far from all
+        ];
+        let reaches = [
+            cube([0.0, 0.0, 0.0], 2.0),
+            cube([2.0, 0.0, 0.0], 2.0),
+            Bounds::EMPTY,
+            cube([2.2, 2.2, 2.2], 1.0),
+        ];
+        let s = sends(0, &boxes, &reaches);
+        assert_eq!(s, vec![vec![], vec![1, 2], vec![], vec![2]]);
     }
 }

@@ -3,96 +3,130 @@
 
 use mpi::traits::Equivalence;
 
-/// One rank's counts and seconds for one step.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
-pub struct StepMetrics {
-    pub step: u64,
-    pub owned_bodies: u64,
-    pub owned_triangles: u64,
-    /// Bodies and bytes that left this rank at a repartitioning.
-    pub migrated_bodies: u64,
-    pub migrated_bytes: u64,
-    /// Ghost bodies sent (one per receiving rank) and received, and their bytes.
-    pub ghosts_sent: u64,
-    pub ghosts_received: u64,
-    pub ghost_bytes_sent: u64,
-    pub ghost_bytes_received: u64,
-    /// Whether the ghost lists were drawn anew this step.
-    pub lists_drawn: u64,
-    /// Contacts this rank books (each contact of the run on one rank).
-    pub contacts: u64,
-    pub partition_seconds: f64,
-    pub migration_seconds: f64,
-    /// Waiting for the ghosts after (nonblocking) or before (blocking) the
-    /// detection among owned bodies.
-    pub wait_seconds: f64,
-    pub local_local_seconds: f64,
-    pub local_ghost_seconds: f64,
-    /// Building the contacts and the effects' forces.
-    pub force_seconds: f64,
-    pub integration_seconds: f64,
-    /// The step less its waits for other ranks (ghosts, books, travel).
-    pub busy_seconds: f64,
-    pub step_seconds: f64,
+/// Declares [`StepMetrics`] from one list of its counts and seconds: the
+/// struct, its names in a fixed order, and the sums of steps.
+macro_rules! step_metrics {
+    (counts { $($(#[$cd:meta])* $c:ident),* $(,)? }
+     seconds { $($(#[$sd:meta])* $s:ident),* $(,)? }) => {
+        /// One rank's counts and seconds for one step.
+        ///
+        /// The sections (the seconds but `return_wait`, which is part of
+        /// `force_return`, and `busy` and `step`) follow each other through
+        /// the step: they add up to `step_seconds` ([`StepMetrics::sections`]).
+        #[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
+        pub struct StepMetrics {
+            pub step: u64,
+            $($(#[$cd])* pub $c: u64,)*
+            $($(#[$sd])* pub $s: f64,)*
+        }
+
+        impl StepMetrics {
+            /// Names and values, in a fixed order, for tables and JSON (the
+            /// step number not among them).
+            pub fn fields(&self) -> Vec<(&'static str, f64)> {
+                vec![
+                    $((stringify!($c), self.$c as f64),)*
+                    $((stringify!($s), self.$s),)*
+                ]
+            }
+
+            /// Adds another step's counts and seconds (the step number is kept).
+            pub fn accumulate(&mut self, o: &StepMetrics) {
+                $(self.$c += o.$c;)*
+                $(self.$s += o.$s;)*
+            }
+        }
+    };
+}
+
+step_metrics! {
+    counts {
+        owned_bodies,
+        owned_triangles,
+        /// Bodies (owned, ghosts and obstacles) and their triangles in this
+        /// rank's world.
+        local_bodies,
+        local_triangles,
+        /// Bodies and bytes that left this rank at a repartitioning.
+        migrated_bodies,
+        migrated_bytes,
+        /// Ghosts sent (one per body and receiving rank) and received, and
+        /// their bytes.
+        ghosts_sent,
+        ghosts_received,
+        ghost_bytes_sent,
+        ghost_bytes_received,
+        /// Force terms sent back to the owners of ghosts, and their bytes.
+        terms_sent,
+        term_bytes_sent,
+        /// Whether the ghost lists were drawn anew.
+        lists_drawn,
+        /// Contacts this rank computed (each contact of the run on one rank).
+        contacts,
+        /// Body pairs and triangle pairs the detection examined.
+        body_pairs,
+        triangle_pairs,
+    }
+    seconds {
+        partition_seconds,
+        migration_seconds,
+        /// The kicks and the drift of the owned bodies.
+        integration_seconds,
+        /// The one all-reduce of a step (travel, stop and failure flags),
+        /// waiting for the slowest rank included.
+        reduce_seconds,
+        /// Drawing the ghost lists and rebuilding this rank's world.
+        lists_seconds,
+        /// Packing and posting the ghosts' motions.
+        post_seconds,
+        /// Detection among owned bodies and obstacles, while the motions travel.
+        local_detection_seconds,
+        /// Inside the call that completes the ghost exchange: the same
+        /// measure with either exchange.
+        wait_seconds,
+        /// Taking in the ghosts' motions, and the detection between owned
+        /// bodies and ghosts.
+        ghost_detection_seconds,
+        /// The effects' forces.
+        force_seconds,
+        /// Sending the terms on ghosts to their owners, receiving and summing
+        /// the terms on this rank's bodies near a cut.
+        force_return_seconds,
+        /// Of which waiting for the terms to arrive.
+        return_wait_seconds,
+        /// The step less its waits for other ranks (reduce, wait, return wait).
+        busy_seconds,
+        step_seconds,
+    }
 }
 
 impl StepMetrics {
-    /// Names and values, in a fixed order, for tables and JSON.
-    pub fn fields(&self) -> [(&'static str, f64); 20] {
-        [
-            ("owned_bodies", self.owned_bodies as f64),
-            ("owned_triangles", self.owned_triangles as f64),
-            ("migrated_bodies", self.migrated_bodies as f64),
-            ("migrated_bytes", self.migrated_bytes as f64),
-            ("ghosts_sent", self.ghosts_sent as f64),
-            ("ghosts_received", self.ghosts_received as f64),
-            ("ghost_bytes_sent", self.ghost_bytes_sent as f64),
-            ("ghost_bytes_received", self.ghost_bytes_received as f64),
-            ("lists_drawn", self.lists_drawn as f64),
-            ("contacts", self.contacts as f64),
-            ("partition_seconds", self.partition_seconds),
-            ("migration_seconds", self.migration_seconds),
-            ("wait_seconds", self.wait_seconds),
-            ("local_local_seconds", self.local_local_seconds),
-            ("local_ghost_seconds", self.local_ghost_seconds),
-            ("force_seconds", self.force_seconds),
-            ("integration_seconds", self.integration_seconds),
-            ("busy_seconds", self.busy_seconds),
-            ("step_seconds", self.step_seconds),
-            ("step", self.step as f64),
-        ]
+    /// The sections of the step, summed: `step_seconds`, up to the few
+    /// instructions between them.
+    pub fn sections(&self) -> f64 {
+        self.partition_seconds
+            + self.migration_seconds
+            + self.integration_seconds
+            + self.reduce_seconds
+            + self.lists_seconds
+            + self.post_seconds
+            + self.local_detection_seconds
+            + self.wait_seconds
+            + self.ghost_detection_seconds
+            + self.force_seconds
+            + self.force_return_seconds
     }
 
     /// Takes in the next step of an interval: its counts and seconds add
-    /// up, the owned bodies and triangles are the step's, as is the step number.
+    /// up; the sizes (owned and local bodies and triangles) are the step's,
+    /// as is the step number.
     pub fn extend_interval(&mut self, o: &StepMetrics) {
         self.accumulate(o);
         self.owned_bodies = o.owned_bodies;
         self.owned_triangles = o.owned_triangles;
+        self.local_bodies = o.local_bodies;
+        self.local_triangles = o.local_triangles;
         self.step = o.step;
-    }
-
-    /// Adds another step's counts and seconds (the step number is kept).
-    pub fn accumulate(&mut self, o: &StepMetrics) {
-        self.owned_bodies += o.owned_bodies;
-        self.owned_triangles += o.owned_triangles;
-        self.migrated_bodies += o.migrated_bodies;
-        self.migrated_bytes += o.migrated_bytes;
-        self.ghosts_sent += o.ghosts_sent;
-        self.ghosts_received += o.ghosts_received;
-        self.ghost_bytes_sent += o.ghost_bytes_sent;
-        self.ghost_bytes_received += o.ghost_bytes_received;
-        self.lists_drawn += o.lists_drawn;
-        self.contacts += o.contacts;
-        self.partition_seconds += o.partition_seconds;
-        self.migration_seconds += o.migration_seconds;
-        self.wait_seconds += o.wait_seconds;
-        self.local_local_seconds += o.local_local_seconds;
-        self.local_ghost_seconds += o.local_ghost_seconds;
-        self.force_seconds += o.force_seconds;
-        self.integration_seconds += o.integration_seconds;
-        self.busy_seconds += o.busy_seconds;
-        self.step_seconds += o.step_seconds;
     }
 }
 
@@ -115,9 +149,6 @@ pub fn json_line(ranks: &[StepMetrics]) -> serde_json::Value {
     let mut per_rank = serde_json::Map::new();
     let mut sum = serde_json::Map::new();
     for (name, _) in StepMetrics::default().fields() {
-        if name == "step" {
-            continue;
-        }
         let column: Vec<f64> = ranks
             .iter()
             .map(|m| m.fields().iter().find(|f| f.0 == name).map_or(0.0, |f| f.1))

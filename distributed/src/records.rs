@@ -1,8 +1,10 @@
 //! What travels between ranks, as typed MPI records.
 
 use dem::body::Body;
-use dem::contact::{Contact, FeatureKey, FeatureKind};
-use glam::{DQuat, DVec3};
+use dem::checkpoint::BodyState;
+use dem::effects::ForceTerm;
+use dem::frame::FrameContact;
+use glam::{DMat3, DQuat, DVec3};
 use mpi::traits::Equivalence;
 
 /// A body's motion: what a ghost copy needs each step.
@@ -24,8 +26,8 @@ impl Motion {
         }
     }
 
-    pub fn state(&self) -> dem::checkpoint::BodyState {
-        dem::checkpoint::BodyState {
+    pub fn state(&self) -> BodyState {
+        BodyState {
             x: DVec3::from_array(self.x),
             q: DQuat::from_array(self.q),
             v: DVec3::from_array(self.v),
@@ -42,70 +44,134 @@ impl Motion {
     }
 }
 
-/// A body moving to a new owner: its motion and the force and torque of the
-/// last evaluation (the next half kick needs them).
+/// A whole body with its id: what a new ghost, or a particle moving to a new
+/// owner, carries. The force and torque are those of the last evaluation
+/// (the next half kick needs them; zero for a ghost).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
 pub struct BodyRecord {
+    pub id: u64,
+    pub shape: u64,
+    pub material: u64,
+    pub motion: Motion,
+    pub mass: f64,
+    pub inv_mass: f64,
+    pub inertia: [f64; 9],
+    pub inv_inertia: [f64; 9],
+    pub force: [f64; 3],
+    pub torque: [f64; 3],
+}
+
+impl BodyRecord {
+    pub fn of(id: u32, b: &Body, force: DVec3, torque: DVec3) -> BodyRecord {
+        BodyRecord {
+            id: u64::from(id),
+            shape: b.shape as u64,
+            material: b.material as u64,
+            motion: Motion::of(b),
+            mass: b.mass,
+            inv_mass: b.inv_mass,
+            inertia: b.inertia_body.to_cols_array(),
+            inv_inertia: b.inv_inertia_body.to_cols_array(),
+            force: force.to_array(),
+            torque: torque.to_array(),
+        }
+    }
+
+    /// The body, to the bit.
+    pub fn body(&self) -> Body {
+        let mut b = Body {
+            shape: self.shape as usize,
+            material: self.material as usize,
+            x: DVec3::ZERO,
+            q: DQuat::IDENTITY,
+            v: DVec3::ZERO,
+            l: DVec3::ZERO,
+            inv_mass: self.inv_mass,
+            mass: self.mass,
+            inv_inertia_body: DMat3::from_cols_array(&self.inv_inertia),
+            inertia_body: DMat3::from_cols_array(&self.inertia),
+        };
+        self.motion.put(&mut b);
+        b
+    }
+}
+
+/// Where a term falls in the order one process sums a body's force:
+/// by effect, then body terms before contact terms, then the contact's body
+/// ids and its place within its pair.
+pub type TermKey = [u64; 5];
+
+/// One term of the force on a body owned by the receiving rank, computed
+/// where the contact it acts at was (see `forces`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
+pub struct TermRecord {
+    /// The body's id.
+    pub body: u64,
+    pub key: [u64; 5],
+    pub force: [f64; 3],
+    pub torque: [f64; 3],
+    /// Whether the term touches the torque (see [`ForceTerm::torque`]).
+    pub with_torque: u64,
+}
+
+impl TermRecord {
+    pub fn new(body: u32, key: TermKey, t: &ForceTerm) -> TermRecord {
+        TermRecord {
+            body: u64::from(body),
+            key,
+            force: t.force.to_array(),
+            torque: t.torque.unwrap_or(DVec3::ZERO).to_array(),
+            with_torque: u64::from(t.torque.is_some()),
+        }
+    }
+
+    /// The term (its body and contact left to the receiver).
+    pub fn term(&self) -> ForceTerm {
+        ForceTerm {
+            body: 0,
+            effect: self.key[0] as u32,
+            contact: ForceTerm::BODY,
+            force: DVec3::from_array(self.force),
+            torque: (self.with_torque != 0).then(|| DVec3::from_array(self.torque)),
+        }
+    }
+}
+
+/// A body's state as a checkpoint holds it, with its id: what rank 0
+/// gathers for output and checkpoints.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
+pub struct StateRecord {
     pub id: u64,
     pub motion: Motion,
     pub force: [f64; 3],
     pub torque: [f64; 3],
 }
 
-/// One row of the friction effect's state (a contact's name and its
-/// tangential displacement; `FrictionEffect::values`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
-pub struct HistoryRow {
-    pub row: [f64; 8],
-}
-
-impl HistoryRow {
-    /// The row's body pair.
-    pub fn pair(&self) -> (usize, usize) {
-        (self.row[0] as usize, self.row[1] as usize)
-    }
-
-    /// The order of the rows in the state: by body pair, then feature key.
-    pub fn key(&self) -> [u64; 5] {
-        [0, 1, 2, 3, 4].map(|k| self.row[k] as u64)
-    }
-}
-
-/// A body and the rank that owns it.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
-pub struct Ownership {
-    pub body: u64,
-    pub rank: u64,
-}
-
-/// A contact as rank 0 gathers it for output, with its position in the
+/// A contact as rank 0 gathers it for output, with its place in the
 /// contact order (body pair, then index within the pair).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
 pub struct ContactRecord {
     pub a: u64,
     pub b: u64,
     pub index: u64,
-    pub key: [u32; 3],
     pub point: [f64; 3],
     pub normal: [f64; 3],
     pub depth: f64,
-    pub weight: f64,
-    /// The force on body a (normal and tangential).
-    pub force: [f64; 3],
+    pub normal_force: [f64; 3],
+    pub tangential_force: [f64; 3],
 }
 
 impl ContactRecord {
-    pub fn new(c: &Contact, index: usize, force: DVec3) -> ContactRecord {
+    pub fn new(c: &FrameContact, index: usize) -> ContactRecord {
         ContactRecord {
-            a: c.a as u64,
-            b: c.b as u64,
+            a: u64::from(c.a),
+            b: u64::from(c.b),
             index: index as u64,
-            key: [c.key.kind as u32, c.key.on_a, c.key.on_b],
             point: c.point.to_array(),
             normal: c.normal.to_array(),
             depth: c.depth,
-            weight: c.weight,
-            force: force.to_array(),
+            normal_force: c.normal_force.to_array(),
+            tangential_force: c.tangential_force.to_array(),
         }
     }
 
@@ -113,21 +179,53 @@ impl ContactRecord {
         (self.a, self.b, self.index)
     }
 
-    /// The contact (without its weight's gradient, which output does not show).
-    pub fn contact(&self) -> Contact {
-        Contact {
-            a: self.a as usize,
-            b: self.b as usize,
-            key: FeatureKey {
-                kind: FeatureKind::from_index(self.key[0] as u8).expect("a kind sent as such"),
-                on_a: self.key[1],
-                on_b: self.key[2],
-            },
+    pub fn contact(&self) -> FrameContact {
+        FrameContact {
+            a: self.a as u32,
+            b: self.b as u32,
             point: DVec3::from_array(self.point),
             normal: DVec3::from_array(self.normal),
             depth: self.depth,
-            weight: self.weight,
-            gradient: Default::default(),
+            normal_force: DVec3::from_array(self.normal_force),
+            tangential_force: DVec3::from_array(self.tangential_force),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_body_record_gives_back_the_body_to_the_bit() {
+        let b = Body {
+            shape: 3,
+            material: 1,
+            x: DVec3::new(0.1, -2.0, 1e-300),
+            q: DQuat::from_xyzw(0.1, 0.2, 0.3, 0.9).normalize(),
+            v: DVec3::new(-0.0, 5e-7, 3.0),
+            l: DVec3::new(1e-9, 0.0, -4.0),
+            inv_mass: 1.0 / 3.0,
+            mass: 3.0,
+            inv_inertia_body: DMat3::from_cols_array(&[1., 2., 3., 4., 5., 6., 7., 8., 9.]),
+            inertia_body: DMat3::from_cols_array(&[9., 8., 7., 6., 5., 4., 3., 2., 1.]),
+        };
+        let r = BodyRecord::of(7, &b, DVec3::X, DVec3::NEG_Y);
+        let back = r.body();
+        let bits = |b: &Body| {
+            let mut v: Vec<u64> = [b.x, b.v, b.l]
+                .iter()
+                .flat_map(|x| x.to_array())
+                .chain(b.q.to_array())
+                .chain([b.mass, b.inv_mass])
+                .chain(b.inertia_body.to_cols_array())
+                .chain(b.inv_inertia_body.to_cols_array())
+                .map(f64::to_bits)
+                .collect();
+            v.extend([b.shape as u64, b.material as u64]);
+            v
+        };
+        assert_eq!(bits(&back), bits(&b));
+        assert_eq!((r.id, r.force, r.torque), (7, [1., 0., 0.], [0., -1., 0.]));
     }
 }

@@ -1,61 +1,71 @@
-//! The distributed step.
+//! The distributed step (the paper's Algorithm 1, with a neighbour list).
 //!
-//! **Who owns what.** The unit of the partition is the particle (a body of
-//! a few dozen triangles), weighted by its triangle count: the contact model
-//! builds each body pair's contacts from the features of both bodies and
-//! all their triangle contacts together (`dem::contact::features`), so the
-//! triangles of a pair must meet on one rank whatever the unit; with bodies
-//! as the unit they do, and no triangle contact, no body state and no force
-//! has to be routed between a triangle's rank and its body's. Each particle
-//! has one owner, which integrates it. Obstacles are on every rank (they do
-//! not move, and as items one wall spanning the scene would reach every rank).
+//! **What a rank holds.** Its particles, ghosts of other ranks' particles
+//! within contact reach of its own, and the obstacles within reach
+//! ([`Local`]); the scene's shapes and materials (one per kind of particle
+//! and per obstacle). Never the whole scene's bodies or triangles: at the
+//! start each rank keeps the particles dealt to it from the scene (k-th
+//! particle to rank k mod P), the partitioner then moves them to their
+//! owners.
 //!
-//! **What travels when.**
-//! - At the start and every K steps: the partitioner assigns the particles;
-//!   a particle that changes rank takes its motion and last force with it
-//!   (blocking), and the friction history of each contact goes from its
-//!   *home* (the owner of its first particle) to the new owners of both
-//!   bodies. An owner table, gathered on every rank, is checked: every
-//!   particle has exactly one owner.
-//! - Every step: owners integrate their particles; the motions of the
-//!   particles near another rank go there as ghosts (non-blocking, during
-//!   the detection among owned bodies and obstacles); then the detection
-//!   between owned and ghost bodies.
+//! **Who computes what.** The unit of the partition is the particle (a body
+//! of a few dozen triangles), weighted by its triangle count: a body pair's
+//! contacts are built from the features of both bodies and all their
+//! triangle contacts together, so its triangles must meet on one rank. A
+//! pair is computed once, on the rank owning its lower particle (the
+//! particle, for a pair with an obstacle); the force terms it puts on a
+//! ghost go back to the ghost's owner.
 //!
-//! **Why the results do not depend on the rank count.** A body pair across a
-//! cut is computed on both ranks, from the same bits (ghosts are exact copies,
-//! and a pair's contacts depend on its two bodies alone), and each rank acts
-//! on its own body: no force travels back. A rank's contacts are those of its
-//! own bodies, in the order of one process's (by body pair), so the effects
-//! add each body's forces in the same order; the contact effect applies its
-//! law to these contacts exactly as on one process. The energy books are
-//! exact sums (`dem::ledger`), whose terms each rank enters for its own
-//! bodies and the contacts whose home it is, merged every step.
+//! **A step.**
+//! 1. every K steps: partition, migrate particles with their last force
+//!    and their contacts' history (through `dem::effects::ContactHistory`);
+//! 2. owners: half kick, drift; one all-reduce of the travel, the stop
+//!    flag and the failure flags;
+//! 3. once some body may have moved half the skin since the ghost lists
+//!    were drawn (or after a migration): draw them anew, ghosts sent whole,
+//!    the rank's world rebuilt, the broad phase run; otherwise the
+//!    neighbour list is kept and:
+//! 4. the ghosts' motions are posted (non-blocking);
+//! 5. detection among owned bodies and obstacles, testing the posted
+//!    requests between pieces, so that the motions move meanwhile;
+//! 6. wait; the ghosts' motions in; detection of owned bodies with ghosts;
+//! 7. the effects' forces; terms on ghosts sent to their owners, which sum
+//!    the terms of their bodies near a cut in one process's order
+//!    (`forces`); owners: half kick.
+//!
+//! **Why the results do not depend on the rank count.** Ghosts are exact
+//! copies of their owners' bits; a rank's bodies are in id order, so its
+//! body pairs, contacts and force terms come in one process's order; each
+//! body's force is summed in that order, term by term; the energy books are
+//! exact sums (`dem::ledger`), merged only when they are read. The triangle
+//! kernel's answer for a pair does not depend on the other pairs of its
+//! batch (brute force; the hybrid recomputing only uncertified pairs, its
+//! default), so a pair examined on any rank gives the same bits. (The
+//! published kernel's whole-batch fallback recomputes a batch when one pair
+//! failed: runs with it agree across rank counts to rounding, not to the bit.)
 
-use crate::ghosts::{exchange_motions_during, Exchange, GhostLists};
+use crate::forces::{arrived, key, places_in_pairs, sum_logged};
+use crate::ghosts::{self, exchange_motions, return_terms, Exchange, GhostLists};
+use crate::local::{Entry, Local};
 use crate::metrics::StepMetrics;
-use crate::records::{BodyRecord, ContactRecord, HistoryRow, Motion, Ownership};
-use dem::checkpoint::{BodyState, Checkpoint, EffectState};
-use dem::contact::{
-    body_contacts, body_triangles, Contact, DetectionStats, Detector, Phase, TriangleContact,
-    TriangleKey, TriangleSet,
-};
-use dem::distance::{Options, Triangle};
-use dem::effects::{
-    Declare, Effect, Forces, FrictionEffect, FrictionParams, StepContext, StepStats,
-};
+use crate::records::{BodyRecord, ContactRecord, Motion, StateRecord, TermKey, TermRecord};
+use dem::body::Body;
+use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
+use dem::contact::{Bounds, Contact, Detector, Role, Share};
+use dem::distance::Options;
+use dem::effects::{Effect, ForceTerm, Forces, RotationParams, StepContext, StepStats};
+use dem::frame::{EnergyBooks, Frame};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::Scene;
-use dem::simulation::Simulation;
-use dem::world::World;
+use dem::simulation::{build_effects, check_checkpoint, energy_books, frame_contacts, shape_radii};
 use glam::DVec3;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
-use partition::comm::{all_gather_v, all_to_all_v};
+use partition::comm::{all_to_all_v, gather_v};
 use partition::{Aabb, Backend, Item, Partitioner};
 use std::time::Instant;
 
@@ -66,17 +76,15 @@ pub struct Settings {
     /// Repartition every this many steps (`None`: only at the start).
     pub repartition_every: Option<u64>,
     pub exchange: Exchange,
-    /// The ghost lists' skin: they are drawn anew once some body may have
-    /// moved half of it (0: every step).
+    /// The skin of the neighbour list and of the ghost lists: both are drawn
+    /// anew once some body may have moved half of it (0: every step).
     pub skin: f64,
 }
 
-/// A run's state gathered on rank 0: what a checkpoint holds, and the
-/// contacts of the last evaluation with the force on body a of each.
-pub struct Gathered {
-    pub checkpoint: Checkpoint,
-    pub contacts: Vec<Contact>,
-    pub contact_forces: Vec<DVec3>,
+/// Where a run starts: the scene's initial state, or a checkpoint of it.
+pub enum Start<'a> {
+    Fresh,
+    Resume(&'a Checkpoint),
 }
 
 /// A simulation stepped on every rank of a communicator.
@@ -84,42 +92,41 @@ pub struct DistributedSimulation<'c> {
     comm: &'c SimpleCommunicator,
     part: Box<dyn Partitioner + 'c>,
     settings: Settings,
-    /// Every body; current are the owned ones, the ghosts and the obstacles.
-    pub world: World,
+    local: Local,
+    /// Every obstacle of the scene (id, body, box with its halo): few, and
+    /// each rank takes in those within its reach.
+    obstacles: Vec<(u32, Body, Bounds)>,
+    /// Bodies and particles in the whole scene.
+    bodies: usize,
+    particles: usize,
+    fingerprint: u64,
     dt: f64,
     rotation: bool,
     effects: Vec<Box<dyn Effect>>,
-    /// Index of the friction effect, whose history moves with the bodies.
-    friction: Option<usize>,
-    contact: bool,
-    shape_radius: Vec<f64>,
-    forces: Forces,
-    ctx: StepContext,
+    detects: bool,
     features: Vec<Features>,
-    halos: Vec<f64>,
+    shape_radius: Vec<f64>,
     kernel: Options,
     detector: Detector,
-    /// The obstacles' triangles, in world space once and for all.
-    obstacles: Vec<(TriangleKey, Triangle)>,
-    /// Per body: the rank owning it (-1: an obstacle, on every rank).
-    owner: Vec<i32>,
-    owned: Vec<usize>,
-    is_owned: Vec<bool>,
+    forces: Forces,
+    ctx: StepContext,
     lists: GhostLists,
+    /// Per body: whether its force terms are logged (ghosts, and owned
+    /// bodies that are ghosts elsewhere), and for a ghost its neighbour's
+    /// place in `lists.recv`.
+    logged: Vec<bool>,
+    recv_slot: Vec<usize>,
     lists_stale: bool,
     /// How far any body may have moved since the lists were drawn.
     travel: f64,
     steps_run: u64,
-    /// Steps in a row, up to the last one, in which some rank found a
-    /// contact deeper than the halos.
+    /// Steps in a row, up to the one before the last, in which some rank
+    /// found a contact deeper than the halos.
     deep_steps: u64,
     metrics: StepMetrics,
-    /// Counters summed over this rank's steps (contacts: those it books).
+    /// Counters summed over this rank's steps.
     pub totals: StepStats,
-    found: Vec<TriangleContact>,
-    /// This rank's triangles, kept between steps for their storage.
-    set: TriangleSet,
-    owned_triangles: Vec<(TriangleKey, Triangle)>,
+    found: [Vec<Contact>; 2],
 }
 
 fn fail<T>(why: impl Into<String>) -> Result<T, String> {
@@ -127,110 +134,136 @@ fn fail<T>(why: impl Into<String>) -> Result<T, String> {
 }
 
 impl<'c> DistributedSimulation<'c> {
-    /// Splits `sim` (the same on every rank: new, or resumed from a
-    /// checkpoint, of `scene`) across the ranks of `comm`. Collective.
+    /// Splits `scene`, from its start or a checkpoint of it, across the
+    /// ranks of `comm` (collective). A fresh run evaluates its initial
+    /// forces, as one process does.
     pub fn new(
         comm: &'c SimpleCommunicator,
         scene: &Scene,
-        sim: Simulation,
+        start: Start,
         settings: Settings,
     ) -> Result<Self, String> {
-        let parts = sim.into_parts();
-        let world = parts.world;
-        let halos = world.per_body(|m| m.halo);
-        let max_halo = halos.iter().copied().fold(0.0, f64::max);
+        if let Start::Resume(c) = start {
+            check_checkpoint(scene, c).map_err(|e| e.to_string())?;
+        }
+        let world = &scene.world;
+        let halo = |b: &Body| world.materials[b.material].halo.unwrap_or(0.0);
+        let max_halo = world.bodies.iter().map(halo).fold(0.0, f64::max);
         let part = settings
             .partitioner
             .create(comm, max_halo)
             .map_err(|e| e.to_string())?;
-        let mut obstacles = Vec::new();
-        for (i, b) in world.bodies.iter().enumerate() {
-            if b.is_static() {
-                body_triangles(&world, i, &mut obstacles);
-            }
+        let mut local = Local::new(world.shapes.clone(), world.materials.clone());
+        let (entries, obstacles) = dealt(scene, start_state(&start), comm.rank(), comm.size());
+        let loads = local.set(entries)?;
+        let mut effects = build_effects(scene);
+        if let Start::Resume(c) = start {
+            // The whole state checked on every rank, so that all refuse alike.
+            dem::simulation::restore_effects(
+                &mut build_effects(scene),
+                &c.effects,
+                world.bodies.len(),
+            )
+            .map_err(|e| e.to_string())?;
+            restore_share(&mut effects, c, scene, comm.rank(), comm.size())?;
         }
-        // Dealt out in turn until the partitioner has placed them.
-        let size = comm.size();
-        let mut dealt = 0;
-        let owner: Vec<i32> = world
-            .bodies
-            .iter()
-            .map(|b| {
-                if b.is_static() {
-                    -1
-                } else {
-                    dealt += 1;
-                    (dealt - 1) % size
-                }
-            })
-            .collect();
-        let me = comm.rank();
-        let owned: Vec<usize> = (0..owner.len()).filter(|&i| owner[i] == me).collect();
-        let mut is_owned = vec![false; owner.len()];
-        owned.iter().for_each(|&i| is_owned[i] = true);
-        let friction = parts
-            .effects
-            .iter()
-            .position(|e| e.name() == <FrictionParams as Declare>::NAME);
         let mut s = DistributedSimulation {
             comm,
             part,
             settings,
+            bodies: world.bodies.len(),
+            particles: world.dynamic_count(),
+            fingerprint: world.fingerprint(),
+            dt: scene.dt,
+            rotation: scene.effects.has::<RotationParams>(),
+            detects: effects.iter().any(|e| e.detects_contacts()),
+            effects,
             features: world.shapes.iter().map(Features::of).collect(),
-            dt: parts.dt,
-            rotation: parts.rotation,
-            effects: parts.effects,
-            friction,
-            contact: scene.effects.has::<dem::effects::ContactParams>(),
-            shape_radius: parts.shape_radius,
-            forces: parts.forces,
+            shape_radius: shape_radii(world),
+            kernel: scene.kernel,
+            detector: Detector::with_skin(settings.skin),
+            forces: Forces::default(),
             ctx: StepContext {
-                dt: parts.dt,
+                dt: scene.dt,
                 ..StepContext::default()
             },
-            halos,
-            kernel: scene.kernel,
-            detector: Detector::default(),
-            obstacles,
-            owner,
-            owned,
-            is_owned,
             lists: GhostLists::default(),
+            logged: Vec::new(),
+            recv_slot: Vec::new(),
             lists_stale: true,
             travel: 0.0,
             steps_run: 0,
             deep_steps: 0,
             metrics: StepMetrics::default(),
             totals: StepStats::default(),
-            found: Vec::new(),
-            set: TriangleSet::default(),
-            owned_triangles: Vec::new(),
-            world,
+            found: Default::default(),
+            obstacles,
+            local,
         };
+        s.set_loads(&loads);
+        s.local.world.time = start_time(&start).0;
+        s.local.world.step = start_time(&start).1;
         s.repartition()?;
+        if let Start::Fresh = start {
+            s.evaluate(true, false)?;
+        }
         Ok(s)
+    }
+
+    /// An invariant of the split broke on this rank (a bug, not bad input):
+    /// the other ranks would wait for this one forever, so every rank ends
+    /// here.
+    fn broken(&self, why: &str) -> ! {
+        eprintln!("tridem: internal error on rank {}: {why}", self.comm.rank());
+        self.comm.abort(70)
+    }
+
+    /// Makes `entries` this rank's bodies, their forces as they carry.
+    fn take_in(&mut self, entries: Vec<Entry>) {
+        match self.local.set(entries) {
+            Ok(loads) => self.set_loads(&loads),
+            Err(why) => self.broken(&why),
+        }
+    }
+
+    /// The forces of this rank's bodies, as `loads` (by index) say.
+    fn set_loads(&mut self, loads: &[(DVec3, DVec3)]) {
+        self.forces.reset(loads.len());
+        for (i, &(f, t)) in loads.iter().enumerate() {
+            self.forces.set(i, f, t);
+        }
+        self.ctx.bodies.clone_from(&self.local.owned);
+    }
+
+    /// Time and step of the run.
+    pub fn time(&self) -> f64 {
+        self.local.world.time
+    }
+
+    pub fn step_number(&self) -> u64 {
+        self.local.world.step
+    }
+
+    /// Particles in the whole scene.
+    pub fn particles(&self) -> usize {
+        self.particles
+    }
+
+    /// The ids of the particles this rank owns, in increasing order.
+    pub fn owned(&self) -> Vec<u32> {
+        let l = &self.local;
+        l.owned.iter().map(|&i| l.world.id(i)).collect()
+    }
+
+    /// This rank's world: its own particles, ghosts and obstacles within reach.
+    pub fn local(&self) -> &Local {
+        &self.local
     }
 
     /// Steps in a row, up to the one before the last, in which some rank
     /// found a contact deeper than the halos (the same on every rank).
     pub fn deep_steps_in_a_row(&self) -> u64 {
         self.deep_steps
-    }
-
-    /// The particles this rank owns, in increasing id.
-    pub fn owned(&self) -> &[usize] {
-        &self.owned
-    }
-
-    /// The contacts of the last evaluation that this rank books (each
-    /// contact of the run is booked on one rank).
-    pub fn booked_contacts(&self) -> impl Iterator<Item = &Contact> {
-        let ctx = &self.ctx;
-        ctx.contacts
-            .iter()
-            .enumerate()
-            .filter(|&(k, _)| ctx.books_contact(k))
-            .map(|(_, c)| c)
     }
 
     /// What this rank measured in the last step.
@@ -242,169 +275,19 @@ impl<'c> DistributedSimulation<'c> {
         self.comm.rank()
     }
 
-    /// The rank that books a contact of bodies a < b: the owner of its first particle.
-    fn home(&self, a: usize, b: usize) -> i32 {
-        if self.owner[a] >= 0 {
-            self.owner[a]
-        } else {
-            self.owner[b]
-        }
-    }
-
-    /// Load balancing and migration (collective; see the module doc).
-    fn repartition(&mut self) -> Result<(), String> {
-        let start = Instant::now();
-        let me = self.comm.rank();
-        let world = &self.world;
-        let items: Vec<Item> = self
-            .owned
-            .iter()
-            .map(|&i| {
-                let b = crate::ghosts::body_box(world, &self.shape_radius, i, self.halos[i]);
-                Item {
-                    id: i as u64,
-                    point: world.bodies[i].x.to_array(),
-                    weight: world.shapes[world.bodies[i].shape].triangles.len() as f64,
-                    bbox: Aabb::new(b.lo.to_array(), b.hi.to_array()),
-                    payload_bytes: std::mem::size_of::<BodyRecord>() as u32,
-                }
-            })
-            .collect();
-        let placed = self.part.partition(self.comm, &items);
-        // Every rank learns whether any failed before any returns.
-        let ok = i32::from(placed.is_ok());
-        let mut all_ok = 0;
-        self.comm
-            .all_reduce_into(&ok, &mut all_ok, SystemOperation::min());
-        let new_owner_of_item = match placed {
-            Ok(o) if all_ok == 1 => o,
-            Ok(_) => return fail("partitioning failed on another rank"),
-            Err(e) => return fail(format!("partitioning: {e}")),
-        };
-        self.metrics.partition_seconds += start.elapsed().as_secs_f64();
-        let start = Instant::now();
-        let size = self.comm.size() as usize;
-        let mut outbox: Vec<Vec<BodyRecord>> = vec![Vec::new(); size];
-        let mut kept = Vec::new();
-        for (&i, &r) in self.owned.iter().zip(&new_owner_of_item) {
-            if r == me {
-                kept.push(i);
-            } else {
-                outbox[r as usize].push(BodyRecord {
-                    id: i as u64,
-                    motion: Motion::of(&self.world.bodies[i]),
-                    force: self.forces.force[i].to_array(),
-                    torque: self.forces.torque[i].to_array(),
-                });
-            }
-        }
-        let sent: usize = outbox.iter().map(Vec::len).sum();
-        self.metrics.migrated_bodies += sent as u64;
-        self.metrics.migrated_bytes += (sent * std::mem::size_of::<BodyRecord>()) as u64;
-        let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
-        let flat: Vec<BodyRecord> = outbox.into_iter().flatten().collect();
-        let (arrived, _) = all_to_all_v(self.comm, &flat, &counts);
-        for r in &arrived {
-            let i = r.id as usize;
-            r.motion.put(&mut self.world.bodies[i]);
-            self.forces.force[i] = DVec3::from_array(r.force);
-            self.forces.torque[i] = DVec3::from_array(r.torque);
-            kept.push(i);
-        }
-        kept.sort_unstable();
-        let new_owner = self.owner_table(&kept)?;
-        self.migrate_history(&new_owner)?;
-        self.owner = new_owner;
-        self.is_owned.iter_mut().for_each(|o| *o = false);
-        kept.iter().for_each(|&i| self.is_owned[i] = true);
-        self.owned = kept;
-        self.lists_stale = true;
-        self.metrics.migration_seconds += start.elapsed().as_secs_f64();
-        Ok(())
-    }
-
-    /// Every rank's owned particles, as an owner per body (collective);
-    /// refused unless each particle has exactly one owner.
-    fn owner_table(&self, owned: &[usize]) -> Result<Vec<i32>, String> {
-        let me = self.comm.rank() as u64;
-        let mine: Vec<Ownership> = owned
-            .iter()
-            .map(|&i| Ownership {
-                body: i as u64,
-                rank: me,
-            })
-            .collect();
-        let all = all_gather_v(self.comm, &mine);
-        let mut owner: Vec<i32> = self
-            .world
-            .bodies
-            .iter()
-            .map(|b| if b.is_static() { -1 } else { -2 })
-            .collect();
-        for Ownership { body: i, rank: r } in all {
-            let slot = &mut owner[i as usize];
-            if *slot != -2 {
-                return fail(format!(
-                    "after migration body {i} is owned twice (ranks {slot} and {r})"
-                ));
-            }
-            *slot = r as i32;
-        }
-        if let Some(i) = owner.iter().position(|&o| o == -2) {
-            return fail(format!("after migration body {i} has no owner"));
-        }
-        Ok(owner)
-    }
-
-    /// Sends each friction contact from its home (under the old owners) to
-    /// the new owners of its bodies; each rank's history becomes what it received.
-    fn migrate_history(&mut self, new_owner: &[i32]) -> Result<(), String> {
-        let Some(k) = self.friction else {
-            return Ok(());
-        };
-        let me = self.comm.rank();
-        let values = self.effects[k].state().unwrap_or_default();
-        let (head, rows) = values.split_at(FrictionEffect::STATE_HEAD.min(values.len()));
-        let size = self.comm.size() as usize;
-        let mut outbox: Vec<Vec<HistoryRow>> = vec![Vec::new(); size];
-        for row in rows.chunks_exact(FrictionEffect::STATE_ROW) {
-            let r = HistoryRow {
-                row: row.try_into().expect("rows of 8"),
-            };
-            let (a, b) = r.pair();
-            if self.home(a, b) != me {
-                continue;
-            }
-            let mut to = [new_owner[a], new_owner[b]];
-            if to[1] == to[0] {
-                to[1] = -1;
-            }
-            for t in to.into_iter().filter(|&t| t >= 0) {
-                outbox[t as usize].push(r);
-            }
-        }
-        let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
-        let flat: Vec<HistoryRow> = outbox.into_iter().flatten().collect();
-        let (mut arrived, _) = all_to_all_v(self.comm, &flat, &counts);
-        arrived.sort_unstable_by_key(HistoryRow::key);
-        let mut restored = head.to_vec();
-        arrived.iter().for_each(|r| restored.extend(r.row));
-        self.effects[k].restore(&restored, &self.world)
-    }
-
     /// One velocity-Verlet step on every rank (collective). `stop`: this
     /// rank was asked to stop (a signal); returns whether any rank was, so
     /// that all stop after the same step.
     pub fn step(&mut self, stop: bool) -> Result<bool, String> {
         let step_start = Instant::now();
-        // The first step carries what the initial partitioning cost.
+        // The first step carries what the start's partitioning cost.
         let carried = if self.steps_run == 0 {
             self.metrics
         } else {
             StepMetrics::default()
         };
         self.metrics = StepMetrics {
-            step: self.world.step + 1,
+            step: self.local.world.step + 1,
             ..carried
         };
         self.steps_run += 1;
@@ -416,23 +299,14 @@ impl<'c> DistributedSimulation<'c> {
             self.repartition()?;
         }
         let start = Instant::now();
-        let (h, rot) = (self.dt, self.rotation);
-        let mut moved: f64 = 0.0;
-        for &i in &self.owned {
-            let b = &mut self.world.bodies[i];
-            half_kick(b, self.forces.force[i], self.forces.torque[i], h, rot);
-            let before = (b.x, b.q);
-            drift(b, h, rot);
-            moved = moved.max(travel_bound(before, b, self.shape_radius[b.shape]));
-        }
+        let moved = self.kick_and_drift();
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
-        let mut waited = Instant::now();
-        // Any state gone non-finite ends the run on every rank.
-        let finite = self.owned.iter().all(|&i| {
-            let b = &self.world.bodies[i];
+        let start = Instant::now();
+        let finite = self.local.owned.iter().all(|&i| {
+            let b = &self.local.world.bodies[i];
             b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite()
         });
-        let local = [
+        let flags = [
             moved,
             f64::from(u8::from(stop)),
             f64::from(u8::from(!finite)),
@@ -440,14 +314,15 @@ impl<'c> DistributedSimulation<'c> {
         ];
         let mut global = [0.0; 4];
         self.comm
-            .all_reduce_into(&local[..], &mut global[..], SystemOperation::max());
-        let mut wait = waited.elapsed().as_secs_f64();
+            .all_reduce_into(&flags[..], &mut global[..], SystemOperation::max());
+        self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
+        let h = self.dt;
         if global[2] > 0.0 {
             return fail(format!(
                 "the simulation became non-finite at step {} (t = {:e} s): the time step is \
                  too large for this scene, or its input holds a non-finite value",
-                self.world.step + 1,
-                self.world.time + h
+                self.local.world.step + 1,
+                self.local.world.time + h
             ));
         }
         self.deep_steps = if global[3] > 0.0 {
@@ -455,294 +330,754 @@ impl<'c> DistributedSimulation<'c> {
         } else {
             0
         };
-        // NaN (a body's state gone bad) redraws too.
+        // NaN travel (a body's state gone bad) redraws too.
         self.travel += global[0];
         let within = self.travel <= 0.5 * self.settings.skin;
-        if self.lists_stale || !within {
-            self.lists = GhostLists::draw(
-                self.comm,
-                &self.world,
-                &self.shape_radius,
-                &self.halos,
-                &self.owned,
-                0.5 * self.settings.skin,
-            );
-            self.travel = 0.0;
-            self.lists_stale = false;
-            self.metrics.lists_drawn = 1;
-        }
-        wait += self.evaluate_forces();
-        let start = Instant::now();
-        for &i in &self.owned {
-            let b = &mut self.world.bodies[i];
-            half_kick(b, self.forces.force[i], self.forces.torque[i], h, rot);
-        }
-        self.world.time += h;
-        self.world.step += 1;
+        let redraw = self.lists_stale || !within;
+        self.evaluate(redraw, true)?;
+        self.local.world.time += h;
+        self.local.world.step += 1;
         self.totals += self.ctx.stats;
-        self.metrics.integration_seconds += start.elapsed().as_secs_f64();
-        waited = step_start;
         let m = &mut self.metrics;
-        m.owned_bodies = self.owned.len() as u64;
-        m.owned_triangles = self
-            .owned
-            .iter()
-            .map(|&i| {
-                self.world.shapes[self.world.bodies[i].shape]
-                    .triangles
-                    .len() as u64
-            })
-            .sum();
-        m.step_seconds = waited.elapsed().as_secs_f64();
-        m.busy_seconds = (m.step_seconds - wait).max(0.0);
+        m.owned_bodies = self.local.owned.len() as u64;
+        m.owned_triangles = self.local.owned_triangles();
+        m.local_bodies = self.local.world.bodies.len() as u64;
+        m.local_triangles = self.local.triangles();
+        m.step_seconds = step_start.elapsed().as_secs_f64();
+        m.busy_seconds =
+            (m.step_seconds - m.reduce_seconds - m.wait_seconds - m.return_wait_seconds).max(0.0);
         Ok(global[1] > 0.0)
     }
 
-    /// Contacts and forces of the current state; returns the seconds spent
-    /// waiting for other ranks.
-    fn evaluate_forces(&mut self) -> f64 {
-        let mut wait = 0.0;
+    /// Owners: half kick and drift; returns the farthest any point of an
+    /// owned body moved.
+    fn kick_and_drift(&mut self) -> f64 {
+        let (h, rot) = (self.dt, self.rotation);
+        let (force, torque) = self.forces.all();
+        let mut moved: f64 = 0.0;
+        for &i in &self.local.owned {
+            let b = &mut self.local.world.bodies[i];
+            half_kick(b, force[i], torque[i], h, rot);
+            let before = (b.x, b.q);
+            drift(b, h, rot);
+            moved = moved.max(travel_bound(before, b, self.shape_radius[b.shape]));
+        }
+        moved
+    }
+
+    /// Contacts and forces of the current state, with the lists drawn anew
+    /// first when `redraw`; with `kick`, the owners' closing half kick.
+    fn evaluate(&mut self, redraw: bool, kick: bool) -> Result<(), String> {
+        if redraw {
+            let start = Instant::now();
+            self.redraw();
+            self.metrics.lists_seconds += start.elapsed().as_secs_f64();
+        }
         self.ctx.contacts.clear();
         self.ctx.stats = StepStats::default();
-        if self.contact {
-            wait += self.find_contacts();
+        if self.detects {
+            self.detect(redraw);
         }
         let start = Instant::now();
-        let me = self.comm.rank();
-        let booked: Vec<bool> = self
-            .ctx
-            .contacts
-            .iter()
-            .map(|c| self.home(c.a, c.b) == me)
-            .collect();
-        self.ctx.stats.detection.contacts = booked.iter().filter(|&&b| b).count() as u64;
-        self.metrics.contacts = self.ctx.stats.detection.contacts;
-        self.ctx.booked_contacts = booked;
-        self.ctx.booked_bodies.clone_from(&self.is_owned);
+        let n = self.local.world.bodies.len();
+        self.forces.reset(n);
+        self.forces.log_bodies(&self.logged);
         self.ctx.contacts_found = true;
-        self.forces.reset(self.world.bodies.len());
-        for e in &mut self.effects {
-            e.apply(&self.world, &mut self.ctx, &mut self.forces);
+        for (k, e) in self.effects.iter_mut().enumerate() {
+            self.forces.begin_effect(k);
+            e.apply(&self.local.world, &mut self.ctx, &mut self.forces);
         }
+        self.metrics.contacts = self.ctx.contacts.len() as u64;
         self.metrics.force_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
-        self.close_books();
-        wait + start.elapsed().as_secs_f64()
+        self.return_forces(kick);
+        self.metrics.force_return_seconds += start.elapsed().as_secs_f64();
+        Ok(())
     }
 
-    /// Finds the contacts of the owned bodies into `ctx.contacts`: the ghost
-    /// exchange around the detection among owned bodies and obstacles, then
-    /// the detection between owned and ghost bodies. Returns the wait.
-    fn find_contacts(&mut self) -> f64 {
+    /// Finds this rank's contacts into `ctx.contacts` (see the module doc).
+    fn detect(&mut self, redraw: bool) {
         let start = Instant::now();
-        // In key order when the obstacles are numbered last (scenes number
-        // them so); `set_owned` sorts otherwise.
-        let mut owned = std::mem::take(&mut self.owned_triangles);
-        owned.clear();
-        for &i in &self.owned {
-            body_triangles(&self.world, i, &mut owned);
-        }
-        owned.extend_from_slice(&self.obstacles);
-        let mut set = std::mem::take(&mut self.set);
-        set.set_owned(&mut owned, &self.halos);
-        self.owned_triangles = owned;
-        self.found.clear();
-        let (world, halos, kernel) = (&self.world, &self.halos, &self.kernel);
-        let (detector, found) = (&mut self.detector, &mut self.found);
-        let received = exchange_motions_during(
-            self.comm,
-            &self.lists,
-            world,
-            self.settings.exchange,
-            || {
-                let start = Instant::now();
-                let stats = detector.triangle_contacts(
-                    world,
-                    &set,
-                    halos,
-                    kernel,
-                    Phase::LocalLocal,
-                    found,
-                );
-                (stats, start.elapsed().as_secs_f64())
-            },
-        );
+        let local = &self.local;
+        let mut stats = self
+            .detector
+            .prepare(&local.world, &local.halos, &local.roles, !redraw);
+        let [mut near, mut far] = std::mem::take(&mut self.found);
+        near.clear();
+        far.clear();
+        let (detector, features, kernel) = (&mut self.detector, &self.features, &self.kernel);
+        // Just drawn, the lists brought the ghosts whole: nothing to exchange.
+        let mode = self.settings.exchange;
+        let none = GhostLists::default();
+        let lists = if redraw { &none } else { &self.lists };
+        let work_start = Instant::now();
+        let received = exchange_motions(self.comm, lists, &local.world, mode, |progress| {
+            let t = Instant::now();
+            let s = detector.detect_share(
+                &local.world,
+                features,
+                &local.halos,
+                kernel,
+                Share::Local,
+                Some(progress),
+                &mut near,
+            );
+            (s, t.elapsed().as_secs_f64())
+        });
         let (local_stats, local_secs) = received.work;
-        self.metrics.local_local_seconds += local_secs;
-        self.metrics.wait_seconds += received.wait;
-        let start_ghosts = Instant::now();
-        let mut ghosts = Vec::new();
-        for (ids, motions) in self.lists.receive.iter().zip(&received.motions) {
-            for (&i, m) in ids.iter().zip(motions) {
-                m.put(&mut self.world.bodies[i]);
-                body_triangles(&self.world, i, &mut ghosts);
+        stats += local_stats;
+        let m = &mut self.metrics;
+        m.wait_seconds += received.wait;
+        m.local_detection_seconds += local_secs + (work_start - start).as_secs_f64();
+        // Packing and posting, and the exchange's own bookkeeping: what it
+        // spent outside the work and the wait.
+        let around = work_start.elapsed().as_secs_f64() - local_secs - received.wait;
+        m.post_seconds += around.max(0.0);
+        let start = Instant::now();
+        for ((_, ids), motions) in lists.recv.iter().zip(&received.motions) {
+            for (&i, motion) in ids.iter().zip(motions) {
+                motion.put(&mut self.local.world.bodies[i]);
             }
         }
-        let (sent, got) = (self.lists.sent(), self.lists.received());
+        let (sent, got) = (self.lists.sent() as u64, self.lists.received() as u64);
         let bytes = std::mem::size_of::<Motion>() as u64;
-        self.metrics.ghosts_sent = sent as u64;
-        self.metrics.ghosts_received = got as u64;
-        self.metrics.ghost_bytes_sent = sent as u64 * bytes;
-        self.metrics.ghost_bytes_received = got as u64 * bytes;
-        set.set_ghosts(ghosts, &self.halos);
-        let across = self.detector.triangle_contacts(
-            &self.world,
-            &set,
-            &self.halos,
-            &self.kernel,
-            Phase::Across,
-            &mut self.found,
-        );
-        self.set = set;
-        self.metrics.local_ghost_seconds += start_ghosts.elapsed().as_secs_f64();
-        let start_build = Instant::now();
-        let is_owned = &self.is_owned;
-        self.found
-            .retain(|t| is_owned[t.a.body as usize] || is_owned[t.b.body as usize]);
-        let (_, deep) = body_contacts(
-            &mut self.found,
-            &self.world,
+        m.ghosts_sent = sent;
+        m.ghosts_received = got;
+        m.ghost_bytes_sent = sent * bytes;
+        m.ghost_bytes_received = got * bytes;
+        let local = &self.local;
+        stats += self.detector.detect_share(
+            &local.world,
             &self.features,
-            &self.halos,
-            &mut self.ctx.contacts,
+            &local.halos,
+            &self.kernel,
+            Share::Ghost,
+            None,
+            &mut far,
         );
-        let mut stats = local_stats;
-        stats += across;
-        stats.deep_contacts = deep;
-        self.ctx.stats.detection = DetectionStats { ..stats };
-        self.metrics.force_seconds += start_build.elapsed().as_secs_f64();
-        let _ = start;
-        received.wait
+        merge_by_pair(&near, &far, &mut self.ctx.contacts);
+        self.found = [near, far];
+        self.ctx.stats.detection = stats;
+        self.metrics.body_pairs = stats.body_pairs;
+        self.metrics.triangle_pairs = stats.triangle_pairs;
+        self.metrics.ghost_detection_seconds += start.elapsed().as_secs_f64();
     }
 
-    /// Merges the ranks' terms of every effect's books and closes them
-    /// (collective).
-    fn close_books(&mut self) {
-        let mut mine = Vec::new();
-        for e in &mut self.effects {
-            if let Some(l) = e.ledger_mut() {
-                for sum in [&l.step_stored, &l.step_taken] {
-                    let parts = sum.parts();
-                    mine.push(parts.len() as f64);
-                    mine.extend(parts);
+    /// Sends the terms on ghosts to their owners and sums the terms of this
+    /// rank's logged bodies in one process's order; with `kick`, the closing
+    /// half kick, of the bodies whose force is known first while the terms
+    /// travel.
+    fn return_forces(&mut self, kick: bool) {
+        let log = self.forces.take_log();
+        let places = places_in_pairs(&self.ctx.contacts);
+        let world = &self.local.world;
+        let mut outgoing: Vec<Vec<TermRecord>> = vec![Vec::new(); self.lists.recv.len()];
+        let mut mine: Vec<(usize, TermKey, ForceTerm)> = Vec::new();
+        for t in log {
+            let i = t.body as usize;
+            let k = key(&t, world, &self.ctx.contacts, &places);
+            match self.local.roles[i] {
+                Role::Ghost => {
+                    outgoing[self.recv_slot[i]].push(TermRecord::new(world.id(i), k, &t))
+                }
+                Role::Own => mine.push((i, k, t)),
+                Role::Obstacle => {}
+            }
+        }
+        let sent: u64 = outgoing.iter().map(|o| o.len() as u64).sum();
+        self.metrics.terms_sent = sent;
+        self.metrics.term_bytes_sent = sent * std::mem::size_of::<TermRecord>() as u64;
+        let (h, rot) = (self.dt, self.rotation);
+        let (local, forces, logged) = (&mut self.local, &mut self.forces, &self.logged);
+        let kick_where = |local: &mut Local, forces: &Forces, want: bool| {
+            let (force, torque) = forces.all();
+            for &i in &local.owned {
+                if logged[i] == want {
+                    half_kick(&mut local.world.bodies[i], force[i], torque[i], h, rot);
                 }
             }
-        }
-        let all = all_gather_v(self.comm, &mine);
-        let per_rank = 2 * self
-            .effects
-            .iter_mut()
-            .filter_map(|e| e.ledger_mut())
-            .count();
-        let mut merged = vec![ExactSum::default(); per_rank];
-        let mut at = 0;
-        // Each rank's block: the same sums in the same order, each its
-        // number of parts, then the parts.
-        while at < all.len() {
-            for sum in &mut merged {
-                let n = all[at] as usize;
-                sum.merge(&ExactSum::from_parts(&all[at + 1..at + 1 + n]));
-                at += 1 + n;
+        };
+        let (received, wait) = return_terms(self.comm, &self.lists, &outgoing, || {
+            if kick {
+                kick_where(local, forces, false);
+            }
+        });
+        self.metrics.return_wait_seconds += wait;
+        let owned_index = |id: u32| local.index_of(id).filter(|&i| local.roles[i] == Role::Own);
+        match arrived(&received, owned_index) {
+            Ok(terms) => mine.extend(terms),
+            Err(why) => {
+                eprintln!("tridem: internal error on rank {}: {why}", self.comm.rank());
+                self.comm.abort(70)
             }
         }
-        let mut sums = merged.into_iter();
-        for e in &mut self.effects {
-            if let Some(l) = e.ledger_mut() {
-                l.step_stored = sums.next().unwrap_or_default();
-                l.step_taken = sums.next().unwrap_or_default();
-                l.close();
-            }
+        sum_logged(forces, mine);
+        if kick {
+            kick_where(local, forces, true);
         }
     }
 
-    /// The run's state on rank 0 (collective; `None` on the other ranks).
-    pub fn gather(&self) -> Option<Gathered> {
+    /// Draws the ghost lists anew and rebuilds this rank's world: its
+    /// particles, the ghosts that arrived, the obstacles within its reach
+    /// (collective).
+    fn redraw(&mut self) {
+        let l = &self.local;
+        let pad = 0.5 * self.settings.skin;
+        let drawn = ghosts::draw(
+            self.comm,
+            &l.world,
+            &self.shape_radius,
+            &l.halos,
+            &l.owned,
+            pad,
+        );
+        let mut entries = l.owned_entries((&[], &[]));
+        for (r, records) in &drawn.arrived {
+            entries.extend(records.iter().map(|rec| Entry {
+                id: rec.id as u32,
+                body: rec.body(),
+                role: Role::Ghost,
+                owner: *r,
+                force: DVec3::ZERO,
+                torque: DVec3::ZERO,
+            }));
+        }
+        for (id, body, bounds) in &self.obstacles {
+            if !drawn.reach.is_empty() && drawn.reach.overlaps(bounds) {
+                entries.push(Entry {
+                    id: *id,
+                    body: body.clone(),
+                    role: Role::Obstacle,
+                    owner: -1,
+                    force: DVec3::ZERO,
+                    torque: DVec3::ZERO,
+                });
+            }
+        }
+        self.take_in(entries);
+        let local = &self.local;
+        let index = |id: u32| local.index_of(id).expect("a body just taken in");
+        let send = drawn
+            .send
+            .iter()
+            .map(|(r, ids)| (*r, ids.iter().map(|&id| index(id)).collect()))
+            .collect();
+        let recv = drawn
+            .arrived
+            .iter()
+            .map(|(r, recs)| (*r, recs.iter().map(|rec| index(rec.id as u32)).collect()))
+            .collect();
+        self.lists = GhostLists { send, recv };
+        let n = local.world.bodies.len();
+        self.logged = local.roles.iter().map(|&r| r == Role::Ghost).collect();
+        self.recv_slot = vec![usize::MAX; n];
+        for (slot, (_, ids)) in self.lists.recv.iter().enumerate() {
+            ids.iter().for_each(|&i| self.recv_slot[i] = slot);
+        }
+        for (_, ids) in &self.lists.send {
+            ids.iter().for_each(|&i| self.logged[i] = true);
+        }
+        self.travel = 0.0;
+        self.lists_stale = false;
+        self.metrics.lists_drawn = 1;
+    }
+
+    /// Load balancing and migration (collective; see the module doc).
+    fn repartition(&mut self) -> Result<(), String> {
+        let start = Instant::now();
         let me = self.comm.rank();
-        let records: Vec<BodyRecord> = self
+        let l = &self.local;
+        let pad = 0.5 * self.settings.skin;
+        let items: Vec<Item> = l
             .owned
             .iter()
-            .map(|&i| BodyRecord {
-                id: i as u64,
-                motion: Motion::of(&self.world.bodies[i]),
-                force: self.forces.force[i].to_array(),
-                torque: self.forces.torque[i].to_array(),
+            .map(|&i| {
+                let w = &l.world;
+                let b = ghosts::body_box(w, &self.shape_radius, i, l.halos[i] + pad);
+                Item {
+                    id: u64::from(w.id(i)),
+                    point: w.bodies[i].x.to_array(),
+                    weight: w.shapes[w.bodies[i].shape].triangles.len() as f64,
+                    bbox: Aabb::new(b.lo.to_array(), b.hi.to_array()),
+                    payload_bytes: std::mem::size_of::<BodyRecord>() as u32,
+                }
             })
             .collect();
-        let records = all_gather_v(self.comm, &records);
-        let mut rows = Vec::new();
-        if let Some(k) = self.friction {
-            let values = self.effects[k].state().unwrap_or_default();
-            let start = FrictionEffect::STATE_HEAD.min(values.len());
-            for row in values[start..].chunks_exact(FrictionEffect::STATE_ROW) {
-                let r = HistoryRow {
-                    row: row.try_into().expect("rows of 8"),
-                };
-                let (a, b) = r.pair();
-                if self.home(a, b) == me {
-                    rows.push(r);
-                }
+        let placed = self.part.partition(self.comm, &items);
+        // Every rank learns whether any failed before any returns.
+        let ok = i32::from(placed.is_ok());
+        let mut all_ok = 0;
+        self.comm
+            .all_reduce_into(&ok, &mut all_ok, SystemOperation::min());
+        let new_owner = match placed {
+            Ok(o) if all_ok == 1 => o,
+            Ok(_) => return fail("partitioning failed on another rank"),
+            Err(e) => return fail(format!("partitioning: {e}")),
+        };
+        self.metrics.partition_seconds += start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        let size = self.comm.size() as usize;
+        let mut outbox: Vec<Vec<BodyRecord>> = vec![Vec::new(); size];
+        let mut kept = Vec::new();
+        let owner_of: Vec<(u32, i32)> = l
+            .owned
+            .iter()
+            .zip(&new_owner)
+            .map(|(&i, &r)| (l.world.id(i), r))
+            .collect();
+        let (force, torque) = self.forces.all();
+        for (&i, &r) in l.owned.iter().zip(&new_owner) {
+            let (id, body) = (l.world.id(i), &l.world.bodies[i]);
+            if r == me {
+                kept.push(Entry {
+                    id,
+                    body: body.clone(),
+                    role: Role::Own,
+                    owner: me,
+                    force: force[i],
+                    torque: torque[i],
+                });
+            } else {
+                outbox[r as usize].push(BodyRecord::of(id, body, force[i], torque[i]));
             }
         }
-        let mut rows = all_gather_v(self.comm, &rows);
-        let mut index = 0;
-        let mut contacts = Vec::new();
-        for (k, c) in self.ctx.contacts.iter().enumerate() {
-            let first = k == 0 || {
-                let p = &self.ctx.contacts[k - 1];
-                (p.a, p.b) != (c.a, c.b)
+        let sent: usize = outbox.iter().map(Vec::len).sum();
+        self.metrics.migrated_bodies += sent as u64;
+        self.metrics.migrated_bytes += (sent * std::mem::size_of::<BodyRecord>()) as u64;
+        let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
+        let flat: Vec<BodyRecord> = outbox.into_iter().flatten().collect();
+        let (arrived, _) = all_to_all_v(self.comm, &flat, &counts);
+        kept.extend(arrived.iter().map(|r| Entry {
+            id: r.id as u32,
+            body: r.body(),
+            role: Role::Own,
+            owner: me,
+            force: DVec3::from_array(r.force),
+            torque: DVec3::from_array(r.torque),
+        }));
+        let owned = kept.len() as u64;
+        let mut all = 0u64;
+        self.comm
+            .all_reduce_into(&owned, &mut all, SystemOperation::sum());
+        if all != self.particles as u64 {
+            return fail(format!(
+                "after migration the ranks own {all} particles of {}",
+                self.particles
+            ));
+        }
+        if let Err(why) = self.migrate_history(&owner_of) {
+            self.broken(&why);
+        }
+        self.take_in(kept);
+        self.lists = GhostLists::default();
+        self.logged = vec![false; self.local.world.bodies.len()];
+        self.lists_stale = true;
+        self.metrics.migration_seconds += start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    /// Moves each contact's history to the new owner of its home particle
+    /// (`owner_of`: this rank's particles and their new owners, by id).
+    fn migrate_history(&mut self, owner_of: &[(u32, i32)]) -> Result<(), String> {
+        let me = self.comm.rank();
+        let size = self.comm.size() as usize;
+        let obstacles = &self.obstacles;
+        let is_obstacle = |id: u32| obstacles.binary_search_by_key(&id, |o| o.0).is_ok();
+        let new_owner = |id: u32| {
+            owner_of
+                .binary_search_by_key(&id, |o| o.0)
+                .map(|k| owner_of[k].1)
+        };
+        for e in self.effects.iter_mut() {
+            let Some(history) = e.history_mut() else {
+                continue;
             };
-            index = if first { 0 } else { index + 1 };
-            if self.ctx.books_contact(k) {
-                contacts.push(ContactRecord::new(c, index, self.ctx.contact_force[k]));
+            let row = history.row_len();
+            let mut outbox: Vec<Vec<f64>> = vec![Vec::new(); size];
+            let mut lost = None;
+            let leaving = history.take_rows(&mut |a, b| {
+                let home = if is_obstacle(a) { b } else { a };
+                match new_owner(home) {
+                    Ok(r) => r != me,
+                    Err(_) => {
+                        lost = Some(home);
+                        false
+                    }
+                }
+            });
+            if let Some(home) = lost {
+                return fail(format!(
+                    "contact history of particle {home}, which this rank does not own"
+                ));
             }
+            for r in leaving.chunks_exact(row) {
+                let (a, b) = (r[0] as u32, r[1] as u32);
+                let home = if is_obstacle(a) { b } else { a };
+                let to = new_owner(home).expect("checked above");
+                outbox[to as usize].extend_from_slice(r);
+            }
+            let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
+            let flat: Vec<f64> = outbox.into_iter().flatten().collect();
+            let (arrived, _) = all_to_all_v(self.comm, &flat, &counts);
+            history.add_rows(&arrived, self.bodies)?;
         }
-        let mut contacts = all_gather_v(self.comm, &contacts);
-        if me != 0 {
-            return None;
-        }
-        let n = self.world.bodies.len();
-        let mut bodies: Vec<BodyState> = self.world.bodies.iter().map(BodyState::of).collect();
+        Ok(())
+    }
+
+    /// The run's state on rank 0, as a checkpoint (collective; `None` on
+    /// the other ranks).
+    fn checkpoint(&self) -> Option<Checkpoint> {
+        let l = &self.local;
+        let (force, torque) = self.forces.all();
+        let states: Vec<StateRecord> = l
+            .owned
+            .iter()
+            .map(|&i| StateRecord {
+                id: u64::from(l.world.id(i)),
+                motion: Motion::of(&l.world.bodies[i]),
+                force: force[i].to_array(),
+                torque: torque[i].to_array(),
+            })
+            .collect();
+        let states = gather_v(self.comm, 0, &states);
+        let effects = self.gather_effect_states();
+        let states = states?;
+        let n = self.bodies;
+        let mut bodies = vec![None; n];
         let (mut force, mut torque) = (vec![DVec3::ZERO; n], vec![DVec3::ZERO; n]);
-        for r in &records {
+        for (id, body, _) in &self.obstacles {
+            bodies[*id as usize] = Some(BodyState::of(body));
+        }
+        for r in &states {
             let i = r.id as usize;
-            bodies[i] = r.motion.state();
+            bodies[i] = Some(r.motion.state());
             force[i] = DVec3::from_array(r.force);
             torque[i] = DVec3::from_array(r.torque);
         }
-        rows.sort_unstable_by_key(HistoryRow::key);
-        let effects = self
-            .effects
-            .iter()
-            .enumerate()
-            .filter_map(|(k, e)| {
-                let mut values = e.state()?;
-                if Some(k) == self.friction {
-                    values.truncate(FrictionEffect::STATE_HEAD);
-                    rows.iter().for_each(|r| values.extend(r.row));
-                }
-                Some(EffectState {
-                    effect: e.name().to_string(),
-                    values,
-                })
-            })
-            .collect();
-        contacts.sort_unstable_by_key(ContactRecord::order);
-        Some(Gathered {
-            checkpoint: Checkpoint {
-                time: self.world.time,
-                step: self.world.step,
-                dt: self.dt,
-                fingerprint: self.world.fingerprint(),
-                bodies,
-                force,
-                torque,
-                effects,
-            },
-            contact_forces: contacts
-                .iter()
-                .map(|c| DVec3::from_array(c.force))
+        Some(Checkpoint {
+            time: l.world.time,
+            step: l.world.step,
+            dt: self.dt,
+            fingerprint: self.fingerprint,
+            bodies: bodies
+                .into_iter()
+                .map(|b| b.expect("every body gathered"))
                 .collect(),
-            contacts: contacts.iter().map(ContactRecord::contact).collect(),
+            force,
+            torque,
+            effects: effects?,
         })
+    }
+
+    /// Every effect's books and history, merged on rank 0 (collective).
+    fn gather_effect_states(&self) -> Option<Vec<EffectState>> {
+        let mut out = Some(Vec::new());
+        for e in self.effects.iter() {
+            if e.ledger().is_none() && e.history().is_none() {
+                continue;
+            }
+            let (stored, taken) = match e.ledger() {
+                Some(l) => {
+                    let (s, t) = (l.stored().parts(), l.taken().parts());
+                    let s = merge_sums(self.comm, &s);
+                    let t = merge_sums(self.comm, &t);
+                    (
+                        s.map(|s| s.canonical_parts()),
+                        t.map(|t| t.canonical_parts()),
+                    )
+                }
+                None => (Some(Vec::new()), Some(Vec::new())),
+            };
+            let row = e.history().map_or(0, |h| h.row_len());
+            let rows = e.history().map(|h| h.rows()).unwrap_or_default();
+            let rows = gather_v(self.comm, 0, &rows).map(|r| sorted_rows(r, row));
+            if let (Some(v), Some(stored), Some(taken), Some(history)) =
+                (out.as_mut(), stored, taken, rows)
+            {
+                v.push(EffectState {
+                    effect: e.name().to_string(),
+                    stored,
+                    taken,
+                    row,
+                    history,
+                });
+            } else {
+                out = None;
+            }
+        }
+        out
+    }
+
+    /// The run's state on rank 0 (collective; `None` on the other ranks):
+    /// a checkpoint, and with `frame`, the output step it shows.
+    pub fn gather(&self, frame: bool) -> Option<(Checkpoint, Option<Frame>)> {
+        let shown = frame.then(|| self.gather_frame_parts());
+        let checkpoint = self.checkpoint();
+        let c = checkpoint?;
+        let shown = match shown {
+            Some(parts) => Some(parts?.frame(&c)),
+            None => None,
+        };
+        Some((c, shown))
+    }
+
+    /// The contacts and energy books of every rank, on rank 0 (collective).
+    fn gather_frame_parts(&self) -> Option<FrameParts> {
+        let l = &self.local;
+        let contacts: Vec<ContactRecord> = frame_contacts(&l.world, &self.ctx)
+            .iter()
+            .zip(places_in_pairs(&self.ctx.contacts))
+            .map(|(c, place)| ContactRecord::new(c, place as usize))
+            .collect();
+        let contacts = gather_v(self.comm, 0, &contacts);
+        let books = energy_books(&l.world, &self.ctx, &self.effects);
+        let numbers = books.numbers();
+        let parts = gather_v(self.comm, 0, &numbers);
+        let counts = gather_v(self.comm, 0, &[numbers.len() as u64]);
+        let (mut contacts, parts, counts) = (contacts?, parts?, counts?);
+        let mut merged = EnergyBooks {
+            effects: books
+                .effects
+                .iter()
+                .map(|(n, _)| (*n, Default::default()))
+                .collect(),
+            ..EnergyBooks::default()
+        };
+        let mut at = 0;
+        for &n in &counts {
+            merged.merge(&books.from_numbers(&parts[at..at + n as usize]));
+            at += n as usize;
+        }
+        contacts.sort_unstable_by_key(ContactRecord::order);
+        Some(FrameParts {
+            contacts,
+            books: merged,
+        })
+    }
+
+    /// Body pairs whose surfaces cross in the last evaluation (a contact
+    /// deeper than the two halos), each with its deepest crossing, by id, in
+    /// pair order; on rank 0 (collective).
+    pub fn crossed_pairs(&self) -> Option<Vec<(u32, u32, f64)>> {
+        let l = &self.local;
+        let mut mine: Vec<[f64; 3]> = Vec::new();
+        for c in &self.ctx.contacts {
+            let over = c.depth - (l.halos[c.a] + l.halos[c.b]);
+            if over <= 0.0 {
+                continue;
+            }
+            let (a, b) = (f64::from(l.world.id(c.a)), f64::from(l.world.id(c.b)));
+            match mine.last_mut() {
+                Some(last) if (last[0], last[1]) == (a, b) => last[2] = last[2].max(over),
+                _ => mine.push([a, b, over]),
+            }
+        }
+        let flat: Vec<f64> = mine.into_iter().flatten().collect();
+        let all = gather_v(self.comm, 0, &flat)?;
+        let mut out: Vec<(u32, u32, f64)> = all
+            .chunks_exact(3)
+            .map(|c| (c[0] as u32, c[1] as u32, c[2]))
+            .collect();
+        out.sort_by_key(|p| (p.0, p.1));
+        Some(out)
+    }
+
+    /// Pairs (inner, outer) of bodies of which the first lies wholly inside
+    /// the second, by id, on rank 0 (collective): each rank looks among its
+    /// particles and what is within their reach.
+    pub fn enclosed_pairs(&self) -> Option<Vec<(u32, u32)>> {
+        let l = &self.local;
+        let mine: Vec<u64> = l
+            .world
+            .enclosed_pairs()
+            .into_iter()
+            .filter(|&(x, y)| l.roles[x] == Role::Own || l.roles[y] == Role::Own)
+            .flat_map(|(x, y)| [u64::from(l.world.id(x)), u64::from(l.world.id(y))])
+            .collect();
+        let all = gather_v(self.comm, 0, &mine)?;
+        let mut out: Vec<(u32, u32)> = all
+            .chunks_exact(2)
+            .map(|c| (c[0] as u32, c[1] as u32))
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        Some(out)
+    }
+}
+
+/// What an output step shows beyond the bodies' states, gathered on rank 0.
+struct FrameParts {
+    contacts: Vec<ContactRecord>,
+    books: EnergyBooks,
+}
+
+impl FrameParts {
+    fn frame(self, c: &Checkpoint) -> Frame {
+        Frame {
+            time: c.time,
+            step: c.step,
+            bodies: c.bodies.clone(),
+            contacts: self.contacts.iter().map(ContactRecord::contact).collect(),
+            energies: self.books.rounded(),
+        }
+    }
+}
+
+/// The particles dealt to rank `me` of `size` (the k-th particle of the
+/// scene to rank k mod size), in the scene's state or `state`'s, and every
+/// obstacle with its box (inflated by its halo).
+fn dealt(
+    scene: &Scene,
+    state: Option<&Checkpoint>,
+    me: i32,
+    size: i32,
+) -> (Vec<Entry>, Vec<(u32, Body, Bounds)>) {
+    let world = &scene.world;
+    let (mut entries, mut obstacles) = (Vec::new(), Vec::new());
+    let mut k = 0;
+    for (i, b) in world.bodies.iter().enumerate() {
+        let id = i as u32;
+        if b.is_static() {
+            let (lo, hi) = world.world_bounds(i);
+            let halo = world.materials[b.material].halo.unwrap_or(0.0);
+            let bounds = Bounds { lo, hi }.inflated(halo);
+            obstacles.push((id, b.clone(), bounds));
+            continue;
+        }
+        k += 1;
+        if (k - 1) % size != me {
+            continue;
+        }
+        let mut body = b.clone();
+        let (mut force, mut torque) = (DVec3::ZERO, DVec3::ZERO);
+        if let Some(c) = state {
+            let s = &c.bodies[i];
+            (body.x, body.q, body.v, body.l) = (s.x, s.q, s.v, s.l);
+            (force, torque) = (c.force[i], c.torque[i]);
+        }
+        entries.push(Entry {
+            id,
+            body,
+            role: Role::Own,
+            owner: me,
+            force,
+            torque,
+        });
+    }
+    (entries, obstacles)
+}
+
+fn start_state<'a>(start: &Start<'a>) -> Option<&'a Checkpoint> {
+    match start {
+        Start::Fresh => None,
+        Start::Resume(c) => Some(c),
+    }
+}
+
+fn start_time(start: &Start) -> (f64, u64) {
+    match start {
+        Start::Fresh => (0.0, 0),
+        Start::Resume(c) => (c.time, c.step),
+    }
+}
+
+/// Restores this rank's share of the effects' states from `checkpoint`:
+/// the books on rank 0 (exact sums: the others' share is zero), and the
+/// history of the contacts whose home particle was dealt to this rank.
+fn restore_share(
+    effects: &mut [Box<dyn Effect>],
+    checkpoint: &Checkpoint,
+    scene: &Scene,
+    me: i32,
+    size: i32,
+) -> Result<(), String> {
+    let world = &scene.world;
+    let mut dealt_to = vec![-1; world.bodies.len()];
+    let mut k = 0;
+    for (i, b) in world.bodies.iter().enumerate() {
+        if !b.is_static() {
+            dealt_to[i] = k % size;
+            k += 1;
+        }
+    }
+    let states: Vec<EffectState> = checkpoint
+        .effects
+        .iter()
+        .map(|s| {
+            let mut s = s.clone();
+            if me != 0 {
+                s.stored = ExactSum::default().parts();
+                s.taken = ExactSum::default().parts();
+            }
+            if s.row > 0 {
+                let rows: Vec<f64> = s
+                    .history
+                    .chunks_exact(s.row)
+                    .filter(|r| {
+                        let (a, b) = (r[0] as usize, r[1] as usize);
+                        let home = match dealt_to.get(a) {
+                            Some(-1) => b,
+                            _ => a,
+                        };
+                        dealt_to.get(home) == Some(&me)
+                    })
+                    .flatten()
+                    .copied()
+                    .collect();
+                s.history = rows;
+            }
+            s
+        })
+        .collect();
+    dem::simulation::restore_effects(effects, &states, world.bodies.len())
+        .map_err(|e: CheckpointError| e.to_string())
+}
+
+/// An exact sum's parts from every rank, merged on rank 0 (collective).
+fn merge_sums(comm: &SimpleCommunicator, parts: &[f64]) -> Option<ExactSum> {
+    let counts = gather_v(comm, 0, &[parts.len() as u64]);
+    let all = gather_v(comm, 0, parts);
+    let (counts, all) = (counts?, all?);
+    let mut sum = ExactSum::default();
+    let mut at = 0;
+    for &n in &counts {
+        sum.merge(&ExactSum::from_parts(&all[at..at + n as usize]));
+        at += n as usize;
+    }
+    Some(sum)
+}
+
+/// History rows in their order (lexicographic, as `ContactHistory` writes them).
+fn sorted_rows(rows: Vec<f64>, row: usize) -> Vec<f64> {
+    if row == 0 {
+        return rows;
+    }
+    let mut chunks: Vec<&[f64]> = rows.chunks_exact(row).collect();
+    chunks.sort_by(|x, y| {
+        x.iter()
+            .zip(y.iter())
+            .map(|(p, q)| p.total_cmp(q))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    chunks.into_iter().flatten().copied().collect()
+}
+
+/// `near` and `far` (each grouped by body pair, in pair order, no pair in
+/// both) merged into `out` in pair order.
+pub fn merge_by_pair(near: &[Contact], far: &[Contact], out: &mut Vec<Contact>) {
+    out.clear();
+    out.reserve(near.len() + far.len());
+    let (mut i, mut j) = (0, 0);
+    while i < near.len() || j < far.len() {
+        let take_near =
+            j == far.len() || (i < near.len() && (near[i].a, near[i].b) < (far[j].a, far[j].b));
+        if take_near {
+            out.push(near[i]);
+            i += 1;
+        } else {
+            out.push(far[j]);
+            j += 1;
+        }
     }
 }

@@ -5,27 +5,26 @@
 //! and the same scene split across the ranks by BACKEND, repartitioning
 //! every 10 steps (`distributed::DistributedSimulation`: owned particles
 //! integrated by their rank, ghost bodies exchanged while the contacts among
-//! owned bodies are found). Each rank reports the contacts it books and the
-//! ghosts it sent and received; rank 0 compares the union of the booked
-//! contacts with the reference, contact by contact, to the bit.
+//! owned bodies are found, each contact computed on one rank). Each rank
+//! reports the contacts it computed and the ghosts it sent and received;
+//! rank 0 compares the gathered contacts with the reference, contact by
+//! contact, to the bit.
 //!
 //! Usage: contacts_mpi BACKEND STEPS
-use dem::contact::Contact;
+use dem::frame::FrameContact;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
-use distributed::{DistributedSimulation, Exchange, Settings};
-use glam::DVec3;
+use distributed::{DistributedSimulation, Exchange, Settings, Start};
 use mpi::traits::*;
 use mpi_harness::Reporter;
 
-/// A contact and its force as bits, for comparison.
-fn bits(c: &Contact, f: DVec3) -> Vec<u64> {
-    let mut v = vec![c.a as u64, c.b as u64, c.key.kind as u64];
-    v.extend([c.key.on_a, c.key.on_b].map(u64::from));
-    let reals = [c.point, c.normal, f]
+/// A contact and its forces as bits, for comparison.
+fn bits(c: &FrameContact) -> Vec<u64> {
+    let mut v = vec![u64::from(c.a), u64::from(c.b)];
+    let reals = [c.point, c.normal, c.normal_force, c.tangential_force]
         .into_iter()
         .flat_map(|p| p.to_array());
-    v.extend(reals.chain([c.depth, c.weight]).map(f64::to_bits));
+    v.extend(reals.chain([c.depth]).map(f64::to_bits));
     v
 }
 
@@ -52,7 +51,7 @@ fn main() {
             .get::<dem::effects::ContactParams>()
             .map_or(0.0, |c| c.skin),
     };
-    let mut dist = DistributedSimulation::new(&comm, &scene, Simulation::new(&scene), settings)
+    let mut dist = DistributedSimulation::new(&comm, &scene, Start::Fresh, settings)
         .unwrap_or_else(|e| panic!("{e}"));
     let (mut sent, mut received) = (0, 0);
     for _ in 0..steps {
@@ -61,23 +60,14 @@ fn main() {
         received = dist.metrics().ghosts_received;
     }
     out.kv("owned_particles", dist.owned().len());
-    out.kv("booked_contacts", dist.totals.detection.contacts);
-    out.kv("last_booked_contacts", dist.booked_contacts().count());
+    out.kv("last_contacts", dist.metrics().contacts);
     out.kv("ghosts_sent", sent);
     out.kv("ghosts_received", received);
-    let Some(gathered) = dist.gather() else {
+    let Some((_, Some(frame))) = dist.gather(true) else {
         return;
     };
-    let one: Vec<Vec<u64>> = reference
-        .contact_forces()
-        .map(|(c, f)| bits(c, f))
-        .collect();
-    let split: Vec<Vec<u64>> = gathered
-        .contacts
-        .iter()
-        .zip(&gathered.contact_forces)
-        .map(|(c, f)| bits(c, *f))
-        .collect();
+    let one: Vec<Vec<u64>> = reference.frame().contacts.iter().map(bits).collect();
+    let split: Vec<Vec<u64>> = frame.contacts.iter().map(bits).collect();
     let differ = one.iter().zip(&split).filter(|(x, y)| x != y).count();
     out.kv("one_node_contacts", one.len());
     out.kv("gathered_contacts", split.len());

@@ -1,12 +1,16 @@
 //! A [`Checkpoint`] on disk, as HDF5, so that h5dump and h5py read it too.
 //!
 //! Layout of `checkpoint.h5`:
-//! - attributes `format` (= 2), `time`, `step`, `dt`, `fingerprint` (the scene's),
+//! - attributes `format` (= 3), `time`, `step`, `dt`, `fingerprint` (the scene's),
 //!   `checksum` (of every number and name below: a damaged file is refused)
 //! - `positions`, `velocities`, `angular_momenta`, `forces`, `torques` (N×3),
 //!   `orientations` (N×4, xyzw)
-//! - `effects/<name>`: each stateful effect's numbers, with its place in the
-//!   pipeline as the attribute `position`.
+//! - `effects/<name>/`: each stateful effect, with its place in the pipeline
+//!   as the attribute `position` and the length of its history's rows as
+//!   `row`; datasets `stored` and `taken`, the parts of its books' exact sums
+//!   (canonical: the same sums give the same numbers), and `history`, its
+//!   per-contact state (rows of `row` numbers, each starting with the
+//!   contact's two body ids).
 //!
 //! A checkpoint is written beside and renamed over the last one: a run killed
 //! while writing leaves the previous checkpoint whole.
@@ -17,7 +21,11 @@ use glam::{DQuat, DVec3};
 use ndarray::{Array1, Array2};
 use std::path::Path;
 
-const FORMAT: u64 = 2;
+const FORMAT: u64 = 3;
+
+/// Numbers per history row at most: a row names a contact and its state, a
+/// few dozen numbers; more is a damaged or foreign file.
+const MAX_ROW: usize = 1024;
 
 pub fn write(path: &Path, c: &Checkpoint) -> CliResult {
     let name = path.file_name().map_or_else(
@@ -76,13 +84,22 @@ fn write_to(path: &Path, c: &Checkpoint) -> hdf5::Result<()> {
         .create("orientations")?;
     let effects = file.create_group("effects")?;
     for (i, e) in c.effects.iter().enumerate() {
-        let d = effects
-            .new_dataset_builder()
-            .with_data(&Array1::from(e.values.clone()))
-            .create(e.effect.as_str())?;
-        d.new_attr::<u64>()
+        let g = effects.create_group(e.effect.as_str())?;
+        g.new_attr::<u64>()
             .create("position")?
             .write_scalar(&(i as u64))?;
+        g.new_attr::<u64>()
+            .create("row")?
+            .write_scalar(&(e.row as u64))?;
+        for (name, values) in [
+            ("stored", &e.stored),
+            ("taken", &e.taken),
+            ("history", &e.history),
+        ] {
+            g.new_dataset_builder()
+                .with_data(&Array1::from(values.clone()))
+                .create(name)?;
+        }
     }
     file.close()
 }
@@ -160,21 +177,35 @@ pub fn read(path: &Path) -> CliResult<Checkpoint> {
         .group("effects")
         .map_err(|e| fail(format!("group effects: {e}")))?;
     for name in group.member_names().map_err(|e| fail(e.to_string()))? {
-        let d = group
-            .dataset(&name)
-            .map_err(|e| fail(format!("effects/{name}: {e}")))?;
-        let position: u64 = d
-            .attr("position")
-            .and_then(|a| a.read_scalar())
-            .map_err(|e| fail(format!("effects/{name}: attribute position: {e}")))?;
-        let values: Array1<f64> = d
-            .read_1d()
-            .map_err(|e| fail(format!("effects/{name}: {e}")))?;
+        let within = |e: hdf5::Error| fail(format!("effects/{name}: {e}"));
+        let g = group.group(&name).map_err(within)?;
+        let attr = |what: &str| -> CliResult<u64> {
+            g.attr(what)
+                .and_then(|a| a.read_scalar())
+                .map_err(|e| fail(format!("effects/{name}: attribute {what}: {e}")))
+        };
+        let (position, row) = (attr("position")?, attr("row")?);
+        let numbers = |what: &str| -> CliResult<Vec<f64>> {
+            let v: Array1<f64> = g
+                .dataset(what)
+                .and_then(|d| d.read_1d())
+                .map_err(|e| fail(format!("effects/{name}/{what}: {e}")))?;
+            Ok(v.to_vec())
+        };
+        let (stored, taken, history) = (numbers("stored")?, numbers("taken")?, numbers("history")?);
+        if row as usize > MAX_ROW || (row == 0 && !history.is_empty()) {
+            return Err(fail(format!(
+                "effects/{name}: history rows of {row} numbers"
+            )));
+        }
         effects.push((
             position,
             EffectState {
-                effect: name,
-                values: values.to_vec(),
+                effect: name.clone(),
+                stored,
+                taken,
+                row: row as usize,
+                history,
             },
         ));
     }

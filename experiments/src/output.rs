@@ -1,8 +1,12 @@
 //! Simulation output: one HDF5 file per run with a group per output step, the
-//! meshes once, and an XDMF sidecar so that ParaView opens it directly.
+//! meshes and the surface's connectivity once, and an XDMF sidecar so that
+//! ParaView opens it directly.
 //!
 //! Layout of `DIR/run.h5`:
 //! - `/shapes/<s>/vertices` (V×3, body frame) and `/shapes/<s>/triangles` (T×3)
+//! - `/surface/triangles` (T×3) and `/surface/body` (T): every body's mesh, its
+//!   vertices numbered body after body as in each step's `surface/points`;
+//!   written once (the connectivity never changes).
 //! - `/steps/<k>/{positions, velocities, angular_momenta} (N×3), orientations (N×4, xyzw),
 //!   contacts (N), time (attribute)`
 //! - `/steps/<k>/energy`: attributes `kinetic_translation`, `kinetic_rotation`, and per
@@ -11,18 +15,19 @@
 //!   up to the integrator's error.
 //! - `/steps/<k>/contact_forces/{points (C×3), forces (C×3), bodies (C×2)}`: each contact's
 //!   point, the force on its first body (the second takes the opposite), and the bodies.
-//! - `/steps/<k>/surface/{points (3T×3), triangles (T×3), body (T)}`: the world-space
-//!   surface of all bodies.
+//! - `/steps/<k>/surface/points` (V×3): every body's mesh vertices where the body stands.
 //!
 //! The XDMF file `DIR/run.xmf` shows the surfaces and the contact forces (points with a
 //! `force` vector: glyphs in ParaView show the force chains) as time series.
 //!
 //! Each step is written and flushed as it is produced, so a run stopped early
 //! keeps everything written before; a run resumed from a checkpoint goes on
-//! appending to the same file.
+//! appending to the same file. What is written is a [`Frame`]: one process
+//! and a run split across ranks write the same bytes.
 
 use crate::error::{create_output_dir, CliError, CliResult};
-use dem::simulation::Simulation;
+use dem::frame::Frame;
+use dem::world::World;
 use ndarray::{Array1, Array2};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -87,7 +92,8 @@ pub fn open_run_output(
     dir: &Path,
     resume: Option<&Path>,
     overwrite: bool,
-    sim: &Simulation,
+    world: &World,
+    time: f64,
 ) -> CliResult<(Output, bool, DirLock)> {
     let run_h5 = dir.join("run.h5");
     if resume.is_none() && run_h5.exists() && !overwrite {
@@ -103,7 +109,7 @@ pub fn open_run_output(
         // Its own checkpoint is the truth of the directory: output steps
         // past it were written by a run killed before its checkpoint.
         let own = same_file(from, &dir.join("checkpoint.h5"));
-        let (out, current) = Output::append(dir, sim, own)?;
+        let (out, current) = Output::append(dir, world, time, own)?;
         return Ok((out, !current, lock));
     }
     let checkpoint = dir.join("checkpoint.h5");
@@ -112,7 +118,7 @@ pub fn open_run_output(
             CliError::runtime(format!("{}: cannot replace: {e}", checkpoint.display()))
         })?;
     }
-    Ok((Output::create(dir, sim)?, true, lock))
+    Ok((Output::create(dir, world)?, true, lock))
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -126,6 +132,12 @@ pub struct Output {
     file: hdf5::File,
     dir: PathBuf,
     steps: Vec<StepIndex>,
+    /// What the surface is made of: the shapes, each body's shape, and the
+    /// surface's size.
+    shapes: Vec<dem::mesh::TriMesh>,
+    body_shapes: Vec<usize>,
+    points: usize,
+    triangles: usize,
 }
 
 /// What the XDMF index needs of an output step.
@@ -133,7 +145,6 @@ pub struct Output {
 struct StepIndex {
     k: usize,
     time: f64,
-    triangles: usize,
     bodies: usize,
     contacts: usize,
 }
@@ -143,13 +154,15 @@ fn h5err(e: hdf5::Error) -> CliError {
 }
 
 impl Output {
-    pub fn create(dir: &Path, sim: &Simulation) -> CliResult<Output> {
+    /// The output of a run of `world` (its shapes and which body has which;
+    /// the bodies' states come with each step).
+    pub fn create(dir: &Path, world: &World) -> CliResult<Output> {
         create_output_dir(dir)?;
         let path = dir.join("run.h5");
         let file = hdf5::File::create(&path)
             .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))?;
         let shapes = file.create_group("shapes").map_err(h5err)?;
-        for (i, m) in sim.world.shapes.iter().enumerate() {
+        for (i, m) in world.shapes.iter().enumerate() {
             let g = shapes.create_group(&i.to_string()).map_err(h5err)?;
             let v = Array2::from_shape_fn((m.vertices.len(), 3), |(r, c)| m.vertices[r][c]);
             let t = Array2::from_shape_fn((m.triangles.len(), 3), |(r, c)| m.triangles[r][c]);
@@ -162,28 +175,78 @@ impl Output {
                 .create("triangles")
                 .map_err(h5err)?;
         }
-        file.create_group("steps").map_err(h5err)?;
-        Ok(Output {
+        let mut out = Output::of(file, dir, world);
+        out.write_connectivity()?;
+        out.file.create_group("steps").map_err(h5err)?;
+        Ok(out)
+    }
+
+    fn of(file: hdf5::File, dir: &Path, world: &World) -> Output {
+        let body_shapes: Vec<usize> = world.bodies.iter().map(|b| b.shape).collect();
+        let count = |f: fn(&dem::mesh::TriMesh) -> usize| {
+            body_shapes.iter().map(|&s| f(&world.shapes[s])).sum()
+        };
+        Output {
             file,
             dir: dir.to_path_buf(),
             steps: Vec::new(),
-        })
+            points: count(|m| m.vertices.len()),
+            triangles: count(|m| m.triangles.len()),
+            shapes: world.shapes.clone(),
+            body_shapes,
+        }
     }
 
-    /// Opens the output of a run that `sim` resumes, to append to it; and
-    /// whether its last step is `sim`'s present state (a checkpoint is taken
-    /// with each output step). Output steps of a later time than `sim`'s
-    /// are dropped when `drop_later` (the directory's own checkpoint is
-    /// resumed: a run killed between an output step and its checkpoint
-    /// left them); otherwise refused: they belong to a run that went further
+    /// `/surface/triangles` and `/surface/body`: each body's mesh, its
+    /// vertices numbered after the bodies before it.
+    fn write_connectivity(&mut self) -> CliResult {
+        let mut triangles = Vec::with_capacity(self.triangles);
+        let mut body = Vec::with_capacity(self.triangles);
+        let mut first = 0u32;
+        for (i, &s) in self.body_shapes.iter().enumerate() {
+            let m = &self.shapes[s];
+            for t in &m.triangles {
+                triangles.push(t.map(|v| first + v));
+                body.push(i as u32);
+            }
+            first += m.vertices.len() as u32;
+        }
+        let g = self.file.create_group("surface").map_err(h5err)?;
+        let t = Array2::from_shape_fn((triangles.len(), 3), |(r, c)| triangles[r][c]);
+        g.new_dataset_builder()
+            .with_data(&t)
+            .create("triangles")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&Array1::from(body))
+            .create("body")
+            .map_err(h5err)?;
+        Ok(())
+    }
+
+    /// Opens the output of a run of `world` that resumes at `time`, to
+    /// append to it; and whether its last step is the resumed state (a
+    /// checkpoint is taken with each output step). Output steps of a later
+    /// time are dropped when `drop_later` (the directory's own checkpoint is
+    /// resumed: a run killed between an output step and its checkpoint left
+    /// them); otherwise refused: they belong to a run that went further
     /// than the checkpoint, and appending would interleave two histories.
-    pub fn append(dir: &Path, sim: &Simulation, drop_later: bool) -> CliResult<(Output, bool)> {
+    pub fn append(
+        dir: &Path,
+        world: &World,
+        time: f64,
+        drop_later: bool,
+    ) -> CliResult<(Output, bool)> {
         let path = dir.join("run.h5");
         let fail = |why: String| CliError::input(format!("{}: {why}", path.display()));
         let file = hdf5::File::open_rw(&path).map_err(|e| fail(e.to_string()))?;
         let group = file
             .group("steps")
             .map_err(|e| fail(format!("not the output of tridem run: {e}")))?;
+        let triangles = file
+            .dataset("surface/body")
+            .map_err(|e| fail(format!("not the output of this tridem run: {e}")))?
+            .size();
         let mut steps = Vec::new();
         for name in group.member_names().map_err(|e| fail(e.to_string()))? {
             let step = |e: hdf5::Error| fail(format!("steps/{name}: {e}"));
@@ -193,14 +256,12 @@ impl Output {
             let g = group.group(&name).map_err(step)?;
             let time: f64 = g.attr("time").and_then(|a| a.read_scalar()).map_err(step)?;
             let n = g.dataset("positions").map_err(step)?.shape()[0];
-            let nt = g.dataset("surface/body").map_err(step)?.size();
             let nc = g
                 .dataset("contact_forces/bodies")
                 .map_or(0, |d| d.shape()[0]);
             steps.push(StepIndex {
                 k,
                 time,
-                triangles: nt,
                 bodies: n,
                 contacts: nc,
             });
@@ -209,11 +270,18 @@ impl Output {
         if steps.iter().enumerate().any(|(i, s)| s.k != i) {
             return Err(fail("output steps are not numbered 0, 1, 2, ...".into()));
         }
-        let (time, n) = (sim.world.time, sim.world.bodies.len());
+        let n = world.bodies.len();
         if let Some(s) = steps.iter().find(|s| s.bodies != n) {
             return Err(fail(format!(
                 "output step {} has {} bodies, the resumed run {n}",
                 s.k, s.bodies
+            )));
+        }
+        let mut out = Output::of(file, dir, world);
+        if triangles != out.triangles {
+            return Err(fail(format!(
+                "its surface has {triangles} triangles, the resumed run's {}",
+                out.triangles
             )));
         }
         if drop_later {
@@ -232,21 +300,17 @@ impl Output {
             )));
         }
         let current = steps.last().is_some_and(|s| s.time == time);
-        let out = Output {
-            file,
-            dir: dir.to_path_buf(),
-            steps,
-        };
+        out.steps = steps;
         out.file.flush().map_err(h5err)?;
         out.write_xdmf()?;
         Ok((out, current))
     }
 
-    /// Writes the current state as the next output step, then rewrites the XDMF index.
-    pub fn write_step(&mut self, sim: &Simulation) -> CliResult {
+    /// Writes `frame` as the next output step, then rewrites the XDMF index.
+    pub fn write_step(&mut self, frame: &Frame) -> CliResult {
         let k = self.steps.len();
-        let w = &sim.world;
-        let n = w.bodies.len();
+        let b = &frame.bodies;
+        let n = b.len();
         let g = self
             .file
             .group("steps")
@@ -255,71 +319,70 @@ impl Output {
         let vec3 =
             |f: &dyn Fn(usize) -> glam::DVec3| Array2::from_shape_fn((n, 3), |(r, c)| f(r)[c]);
         g.new_dataset_builder()
-            .with_data(&vec3(&|i| w.bodies[i].x))
+            .with_data(&vec3(&|i| b[i].x))
             .create("positions")
             .map_err(h5err)?;
         g.new_dataset_builder()
-            .with_data(&vec3(&|i| w.bodies[i].v))
+            .with_data(&vec3(&|i| b[i].v))
             .create("velocities")
             .map_err(h5err)?;
         g.new_dataset_builder()
-            .with_data(&vec3(&|i| w.bodies[i].l))
+            .with_data(&vec3(&|i| b[i].l))
             .create("angular_momenta")
             .map_err(h5err)?;
-        let q = Array2::from_shape_fn((n, 4), |(r, c)| w.bodies[r].q.to_array()[c]);
+        let q = Array2::from_shape_fn((n, 4), |(r, c)| b[r].q.to_array()[c]);
         g.new_dataset_builder()
             .with_data(&q)
             .create("orientations")
             .map_err(h5err)?;
-        let contacts = Array1::from(sim.contact_counts());
         g.new_dataset_builder()
-            .with_data(&contacts)
+            .with_data(&Array1::from(frame.contact_counts()))
             .create("contacts")
             .map_err(h5err)?;
         g.new_attr::<f64>()
             .create("time")
-            .and_then(|a| a.write_scalar(&w.time))
+            .and_then(|a| a.write_scalar(&frame.time))
             .map_err(h5err)?;
-
-        // World-space surface for visualisation.
-        let mut pts = Vec::new();
-        let mut body = Vec::new();
-        for (bi, b) in w.bodies.iter().enumerate() {
-            let m = &w.shapes[b.shape];
-            for t in &m.triangles {
-                for &v in t {
-                    pts.push(b.to_world(m.vertices[v as usize]));
-                }
-                body.push(bi as u32);
-            }
-        }
-        let nt = body.len();
-        let s = g.create_group("surface").map_err(h5err)?;
-        let p = Array2::from_shape_fn((3 * nt, 3), |(r, c)| pts[r][c]);
-        let t = Array2::from_shape_fn((nt, 3), |(r, c)| (3 * r + c) as u32);
-        s.new_dataset_builder()
-            .with_data(&p)
-            .create("points")
-            .map_err(h5err)?;
-        s.new_dataset_builder()
-            .with_data(&t)
-            .create("triangles")
-            .map_err(h5err)?;
-        s.new_dataset_builder()
-            .with_data(&Array1::from(body))
-            .create("body")
-            .map_err(h5err)?;
-        write_energies(&g, sim)?;
-        let nc = write_contacts(&g, sim)?;
+        self.write_surface(&g, frame)?;
+        write_energies(&g, frame)?;
+        let nc = write_contacts(&g, frame)?;
         self.file.flush().map_err(h5err)?;
         self.steps.push(StepIndex {
             k,
-            time: w.time,
-            triangles: nt,
+            time: frame.time,
             bodies: n,
             contacts: nc,
         });
         self.write_xdmf()
+    }
+
+    /// The step's surface points: each body's mesh vertices where it
+    /// stands, written a block of bodies at a time (a large scene's surface
+    /// is never built whole).
+    fn write_surface(&self, g: &hdf5::Group, frame: &Frame) -> CliResult {
+        let s = g.create_group("surface").map_err(h5err)?;
+        let d = s
+            .new_dataset::<f64>()
+            .shape((self.points, 3))
+            .create("points")
+            .map_err(h5err)?;
+        let mut block: Vec<f64> = Vec::new();
+        let (mut at, mut first) = (0usize, 0usize);
+        for (i, state) in frame.bodies.iter().enumerate() {
+            for &v in &self.shapes[self.body_shapes[i]].vertices {
+                let p = state.x + state.q * v;
+                block.extend(p.to_array());
+            }
+            at += self.shapes[self.body_shapes[i]].vertices.len();
+            if block.len() >= SURFACE_BLOCK || i + 1 == frame.bodies.len() {
+                let rows = block.len() / 3;
+                let a = Array2::from_shape_vec((rows, 3), std::mem::take(&mut block))
+                    .expect("three coordinates per point");
+                d.write_slice(&a, (first..at, ..)).map_err(h5err)?;
+                first = at;
+            }
+        }
+        Ok(())
     }
 
     fn write_xdmf(&self) -> CliResult {
@@ -330,29 +393,23 @@ impl Output {
             x,
             r#"<Grid Name="surface" GridType="Collection" CollectionType="Temporal">"#
         );
-        for &StepIndex {
-            k,
-            time: t,
-            triangles: nt,
-            ..
-        } in &self.steps
-        {
+        let (nt, np) = (self.triangles, self.points);
+        for &StepIndex { k, time: t, .. } in &self.steps {
             let _ = writeln!(
                 x,
                 r#"<Grid Name="step{k}" GridType="Uniform"><Time Value="{t:e}"/>"#
             );
             let _ = writeln!(
                 x,
-                r#"<Topology TopologyType="Triangle" NumberOfElements="{nt}"><DataItem Dimensions="{nt} 3" NumberType="UInt" Precision="4" Format="HDF">run.h5:/steps/{k}/surface/triangles</DataItem></Topology>"#
+                r#"<Topology TopologyType="Triangle" NumberOfElements="{nt}"><DataItem Dimensions="{nt} 3" NumberType="UInt" Precision="4" Format="HDF">run.h5:/surface/triangles</DataItem></Topology>"#
             );
             let _ = writeln!(
                 x,
-                r#"<Geometry GeometryType="XYZ"><DataItem Dimensions="{} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/surface/points</DataItem></Geometry>"#,
-                3 * nt
+                r#"<Geometry GeometryType="XYZ"><DataItem Dimensions="{np} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/surface/points</DataItem></Geometry>"#
             );
             let _ = writeln!(
                 x,
-                r#"<Attribute Name="body" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{nt}" NumberType="UInt" Precision="4" Format="HDF">run.h5:/steps/{k}/surface/body</DataItem></Attribute>"#
+                r#"<Attribute Name="body" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{nt}" NumberType="UInt" Precision="4" Format="HDF">run.h5:/surface/body</DataItem></Attribute>"#
             );
             let _ = writeln!(x, "</Grid>");
         }
@@ -399,9 +456,12 @@ impl Output {
     }
 }
 
+/// Points per block of the surface written at once (as coordinates).
+const SURFACE_BLOCK: usize = 3 << 16;
+
 /// The energy attributes of one output step.
-fn write_energies(g: &hdf5::Group, sim: &Simulation) -> CliResult {
-    let e = sim.energies();
+fn write_energies(g: &hdf5::Group, frame: &Frame) -> CliResult {
+    let e = &frame.energies;
     let group = g.create_group("energy").map_err(h5err)?;
     let mut values = vec![
         ("kinetic_translation".to_string(), e.translation),
@@ -422,16 +482,13 @@ fn write_energies(g: &hdf5::Group, sim: &Simulation) -> CliResult {
 }
 
 /// The contacts of one output step; returns how many.
-fn write_contacts(g: &hdf5::Group, sim: &Simulation) -> CliResult<usize> {
-    let forces: Vec<_> = sim.contact_forces().collect();
-    let nc = forces.len();
+fn write_contacts(g: &hdf5::Group, frame: &Frame) -> CliResult<usize> {
+    let c = &frame.contacts;
+    let nc = c.len();
     let group = g.create_group("contact_forces").map_err(h5err)?;
-    let points = Array2::from_shape_fn((nc, 3), |(r, c)| forces[r].0.point[c]);
-    let f = Array2::from_shape_fn((nc, 3), |(r, c)| forces[r].1[c]);
-    let bodies = Array2::from_shape_fn((nc, 2), |(r, c)| {
-        let contact = forces[r].0;
-        [contact.a, contact.b][c] as u32
-    });
+    let points = Array2::from_shape_fn((nc, 3), |(r, k)| c[r].point[k]);
+    let f = Array2::from_shape_fn((nc, 3), |(r, k)| c[r].force()[k]);
+    let bodies = Array2::from_shape_fn((nc, 2), |(r, k)| [c[r].a, c[r].b][k]);
     for (name, data) in [("points", &points), ("forces", &f)] {
         group
             .new_dataset_builder()

@@ -17,7 +17,11 @@ pub fn run(args: &RunArgs) -> CliResult {
     // daemon) and gives one rank: a run not started by a launcher goes
     // without MPI.
     let universe = if launched_by_mpi() {
-        Some(mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?)
+        // Funneled: MPI is called from the main thread only, while the
+        // thread pool's workers and the signal thread exist.
+        let (universe, _) = mpi::initialize_with_threading(mpi::Threading::Funneled)
+            .ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
+        Some(universe)
     } else {
         None
     };
@@ -32,10 +36,10 @@ pub fn run(args: &RunArgs) -> CliResult {
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
-    let (mut sim, first) = crate::run_mpi::start(args, &scene)?;
+    let (mut sim, first) = start(args, &scene)?;
     let steps = steps_to_run(args, &scene, first)?;
     let mut files = RunFiles::open(args, &sim)?;
-    announce(args, &scene, &sim, steps);
+    announce(args, &scene, steps);
     files.write_first(&sim)?;
     let stop = stop_on_signals()?;
     let start = Instant::now();
@@ -93,24 +97,24 @@ pub(crate) fn steps_to_run(args: &RunArgs, scene: &Scene, first: u64) -> CliResu
 }
 
 /// What the run is, on one line of standard error.
-fn announce(args: &RunArgs, scene: &Scene, sim: &Simulation, steps: u64) {
+fn announce(args: &RunArgs, scene: &Scene, steps: u64) {
     eprintln!(
         "{}, {} threads",
-        describe(args, scene, sim, steps),
+        describe(args, scene, steps),
         rayon::current_num_threads()
     );
 }
 
 /// The scene, its bodies and effects, the step and the steps to run.
-pub(crate) fn describe(args: &RunArgs, scene: &Scene, sim: &Simulation, steps: u64) -> String {
-    let w = &sim.world;
+pub(crate) fn describe(args: &RunArgs, scene: &Scene, steps: u64) -> String {
+    let w = &scene.world;
     format!(
         "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps",
         args.scene.display(),
         w.dynamic_count(),
         w.particle_triangles(),
         w.bodies.len() - w.dynamic_count(),
-        sim.effect_names().join(", "),
+        scene.effects.names().join(", "),
         scene.dt,
         scene
             .stable_dt
@@ -141,8 +145,13 @@ impl RunFiles {
                 _lock: None,
             });
         };
-        let (out, write_first, lock) =
-            crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, sim)?;
+        let (out, write_first, lock) = crate::output::open_run_output(
+            dir,
+            args.resume.as_deref(),
+            args.overwrite,
+            &sim.world,
+            sim.world.time,
+        )?;
         Ok(RunFiles {
             out: Some(out),
             write_first,
@@ -155,7 +164,7 @@ impl RunFiles {
     /// The initial state, when the output starts with this run.
     fn write_first(&mut self, sim: &Simulation) -> CliResult {
         match self.out.as_mut().filter(|_| self.write_first) {
-            Some(o) => o.write_step(sim),
+            Some(o) => o.write_step(&sim.frame()),
             None => Ok(()),
         }
     }
@@ -163,7 +172,7 @@ impl RunFiles {
     /// An output step: the state, then the checkpoint that goes with it.
     fn write_output_step(&mut self, sim: &Simulation) -> CliResult {
         if let Some(o) = &mut self.out {
-            o.write_step(sim)?;
+            o.write_step(&sim.frame())?;
             self.write_checkpoint(sim)?;
         }
         Ok(())
@@ -299,6 +308,39 @@ pub(crate) fn refuse_resume_without_output(args: &RunArgs) -> CliResult {
     }
 }
 
+/// The run's simulation, new (refused when bodies cross at the start) or
+/// resumed from a checkpoint, and its first step.
+fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
+    match &args.resume {
+        None => {
+            let sim = Simulation::new(scene);
+            if !scene.allow_deep_contacts {
+                let enclosed = sim.world.enclosed_pairs();
+                refuse_overlaps_at_start(scene, &sim.crossed_pairs(), &enclosed)?;
+            }
+            Ok((sim, 0))
+        }
+        Some(file) => {
+            let c = checkpoint_file::read(file)?;
+            let sim = Simulation::resume(scene, &c).map_err(|e| misfit(args, file, e))?;
+            Ok((sim, c.step))
+        }
+    }
+}
+
+/// A checkpoint that does not fit the run's scene.
+pub(crate) fn misfit(
+    args: &RunArgs,
+    file: &std::path::Path,
+    e: impl std::fmt::Display,
+) -> CliError {
+    CliError::input(format!(
+        "{}: does not fit the scene {}: {e}",
+        file.display(),
+        args.scene.display()
+    ))
+}
+
 /// Whether an MPI launcher started this process: mpirun (Open MPI, its
 /// PRRTE runtime, MPICH's Hydra) and srun with a PMI or PMIx plugin all set
 /// one of these.
@@ -315,12 +357,16 @@ pub(crate) const DEEP_STEPS: u64 = 100;
 
 /// Bodies whose surfaces cross at the start are refused, and a run whose
 /// contacts stay crossed for [`DEEP_STEPS`] steps stops, naming the pair,
-/// unless the scene sets `simulation.allow_deep_contacts`.
-pub(crate) fn refuse_crossings(scene: &Scene, sim: &Simulation, when: &str) -> CliResult {
+/// unless the scene sets `simulation.allow_deep_contacts`. `crossed`: the
+/// pairs (a, b, depth) crossing, by id.
+pub(crate) fn refuse_crossings(
+    scene: &Scene,
+    crossed: &[(usize, usize, f64)],
+    when: &str,
+) -> CliResult {
     if scene.allow_deep_contacts {
         return Ok(());
     }
-    let crossed = sim.crossed_pairs();
     let Some(&(a, b, depth)) = crossed.iter().max_by(|x, y| x.2.total_cmp(&y.2)) else {
         return Ok(());
     };
@@ -345,12 +391,16 @@ fn and_more(n: usize) -> String {
 /// A new run is refused when bodies start crossing, or when one starts
 /// wholly inside another (no contact sees that: their surfaces need not
 /// meet), unless the scene sets `simulation.allow_deep_contacts`.
-pub(crate) fn refuse_overlaps_at_start(scene: &Scene, sim: &Simulation) -> CliResult {
-    refuse_crossings(scene, sim, "at the start")?;
+/// `enclosed`: pairs (inner, outer) by id, sorted.
+pub(crate) fn refuse_overlaps_at_start(
+    scene: &Scene,
+    crossed: &[(usize, usize, f64)],
+    enclosed: &[(usize, usize)],
+) -> CliResult {
+    refuse_crossings(scene, crossed, "at the start")?;
     if scene.allow_deep_contacts {
         return Ok(());
     }
-    let enclosed = sim.world.enclosed_pairs();
     let Some(&(inner, outer)) = enclosed.first() else {
         return Ok(());
     };
@@ -371,7 +421,8 @@ fn refuse_lasting_crossings(scene: &Scene, sim: &Simulation, deep_steps: u64) ->
         "for {DEEP_STEPS} steps in a row (step {}, t = {:e} s); the run stops",
         sim.world.step, sim.world.time
     );
-    refuse_crossings(scene, sim, &when).map_err(|e| CliError::runtime(e.to_string()))
+    refuse_crossings(scene, &sim.crossed_pairs(), &when)
+        .map_err(|e| CliError::runtime(e.to_string()))
 }
 
 /// Warns of particles that ended below every obstacle, along gravity: they

@@ -1,19 +1,25 @@
 //! `mpirun -np P tridem run SCENE`: the DEM split across P ranks
 //! (`distributed`), with the output, checkpoints and summary of a one-node
-//! run, written by rank 0, and per-rank metrics.
+//! run, written by rank 0 from what it gathers, and per-rank metrics.
+//!
+//! Every check of the input runs before anything is written: the output
+//! directory is made only once the run has started on every rank. A bad
+//! input ends every rank with one message between them.
 
 use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::Output;
+use crate::run_cmd::{describe, refuse_crossings, refuse_overlaps_at_start, DEEP_STEPS};
+use dem::checkpoint::Checkpoint;
+use dem::frame::Frame;
 use dem::scene::Scene;
-use dem::simulation::Simulation;
 use distributed::metrics::{imbalance, json_line};
-use distributed::{DistributedSimulation, Exchange, Settings, StepMetrics};
+use distributed::{DistributedSimulation, Exchange, Settings, Start, StepMetrics};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use partition::comm::all_gather_v;
+use partition::comm::gather_v;
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -45,6 +51,12 @@ fn reported_by(comm: &SimpleCommunicator, by: i32, e: Option<CliError>, code: u8
     }
     comm.barrier();
     CliError::reported_elsewhere(code)
+}
+
+/// An error every rank reached together (the same on all): rank 0 reports it.
+fn on_every_rank(comm: &SimpleCommunicator, e: CliError) -> CliError {
+    let code = e.exit_code();
+    reported_by(comm, 0, Some(e), code)
 }
 
 /// The scene's `[parallel]` settings under the command line's.
@@ -79,6 +91,8 @@ struct Writer {
     out: Option<Output>,
     checkpoint: Option<std::path::PathBuf>,
     metrics: Option<std::io::BufWriter<std::fs::File>>,
+    /// Whether the present state is still to be written as an output step.
+    first: bool,
 }
 
 pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
@@ -88,6 +102,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     // the start, so that no signal finds a rank without its handler.
     let stop = crate::run_cmd::stop_on_signals()?;
     agree(comm, crate::run_cmd::refuse_resume_without_output(args))?;
+    agree(comm, refuse_metrics_over(args))?;
     let scene = agree(
         comm,
         Scene::load_with(&args.scene, &args.overrides).map_err(|e| CliError::input(e.to_string())),
@@ -107,23 +122,43 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             .build_global()
             .map_err(|e| CliError::runtime(e.to_string())),
     )?;
-    let (sim, first) = agree(comm, start(args, &scene))?;
+    let resumed = agree(comm, read_checkpoint(args))?;
+    let first = resumed.as_ref().map_or(0, |c| c.step);
     let steps = agree(comm, crate::run_cmd::steps_to_run(args, &scene, first))?;
-    // Only rank 0 touches the disk; the others learn whether it could.
-    let writer = if me == 0 {
-        open_writer(args, &sim)
-    } else {
-        Ok(None)
+    let start_with = match &resumed {
+        Some(c) => Start::Resume(c),
+        None => Start::Fresh,
+    };
+    let dist = DistributedSimulation::new(comm, &scene, start_with, settings);
+    let dist = agree(
+        comm,
+        dist.map_err(|e| match &args.resume {
+            Some(file) => crate::run_cmd::misfit(args, file, e),
+            None => CliError::runtime(e),
+        }),
+    )?;
+    drop(resumed);
+    let mut dist = dist;
+    if args.resume.is_none() && !scene.allow_deep_contacts {
+        let refused = refuse_start(&scene, &dist);
+        agree(comm, refused)?;
+    }
+    // Only rank 0 touches the disk, once every check has passed; the
+    // others learn whether it could.
+    let writer = match me {
+        0 => open_writer(args, &scene, dist.time()).map(Some),
+        _ => Ok(None),
     };
     let mut writer = agree(comm, writer)?;
-    if me == 0 {
-        announce(args, &scene, &sim, &settings, steps, comm.size(), threads);
+    let first_frame = writer.as_ref().is_some_and(|w| w.first);
+    let wants_first = agree_flag(comm, first_frame);
+    if wants_first {
+        let written = write_gathered(&dist, writer.as_mut(), true, false);
+        agree(comm, written)?;
     }
-    let n_particles = sim.world.dynamic_count();
-    let mut dist = agree(
-        comm,
-        DistributedSimulation::new(comm, &scene, sim, settings).map_err(CliError::runtime),
-    )?;
+    if me == 0 {
+        announce(args, &scene, &settings, steps, comm.size(), threads);
+    }
     let mut totals = StepMetrics::default();
     let start = Instant::now();
     let ended = step_loop(
@@ -143,27 +178,73 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         };
         let e = CliError::runtime(format!(
             "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
-            dist.world.step, dist.world.time
+            dist.step_number(),
+            dist.time()
         ));
-        return Err(if me == 0 {
-            e
-        } else {
-            CliError::reported_elsewhere(1)
-        });
+        return Err(on_every_rank(comm, e));
     }
-    if steps > 0 && !dist.world.step.is_multiple_of(scene.output_every) {
-        agree(comm, write_state(&scene, &dist, writer.as_mut(), false))?;
+    if steps > 0 && !dist.step_number().is_multiple_of(scene.output_every) {
+        let written = write_gathered(&dist, writer.as_mut(), false, true);
+        agree(comm, written)?;
     }
     let secs = start.elapsed().as_secs_f64();
-    summary(comm, args, &dist, &totals, steps, secs, n_particles);
+    summary(comm, args, &dist, &totals, steps, secs);
     Ok(())
+}
+
+/// A metrics file that exists is replaced only with --overwrite.
+fn refuse_metrics_over(args: &RunArgs) -> CliResult {
+    match args
+        .metrics
+        .as_ref()
+        .filter(|m| m.exists() && !args.overwrite)
+    {
+        Some(m) => Err(CliError::input(format!(
+            "{}: exists; choose another metrics file or replace it with --overwrite",
+            m.display()
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// The checkpoint to resume from, read on every rank (each keeps its share).
+fn read_checkpoint(args: &RunArgs) -> CliResult<Option<Checkpoint>> {
+    match &args.resume {
+        Some(file) => checkpoint_file::read(file).map(Some),
+        None => Ok(None),
+    }
+}
+
+/// Whether `mine` (rank 0's) holds: told to every rank (collective).
+fn agree_flag(comm: &SimpleCommunicator, mine: bool) -> bool {
+    let mut flag = u8::from(mine);
+    comm.process_at_rank(0).broadcast_into(&mut flag);
+    flag == 1
+}
+
+/// A new run whose bodies cross or lie inside one another at the start is
+/// refused (collective; the error on rank 0).
+fn refuse_start(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
+    let crossed = dist.crossed_pairs();
+    let enclosed = dist.enclosed_pairs();
+    let (Some(crossed), Some(enclosed)) = (crossed, enclosed) else {
+        return Ok(());
+    };
+    let crossed: Vec<(usize, usize, f64)> = crossed
+        .into_iter()
+        .map(|(a, b, d)| (a as usize, b as usize, d))
+        .collect();
+    let enclosed: Vec<(usize, usize)> = enclosed
+        .into_iter()
+        .map(|(a, b)| (a as usize, b as usize))
+        .collect();
+    refuse_overlaps_at_start(scene, &crossed, &enclosed)
 }
 
 /// What the run is, on one line of rank 0's standard error.
 fn announce(
     args: &RunArgs,
     scene: &Scene,
-    sim: &Simulation,
     settings: &Settings,
     steps: u64,
     ranks: i32,
@@ -171,7 +252,7 @@ fn announce(
 ) {
     eprintln!(
         "{}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}",
-        crate::run_cmd::describe(args, scene, sim, steps),
+        describe(args, scene, steps),
         settings.partitioner.name(),
         settings.exchange.name(),
         settings
@@ -196,21 +277,29 @@ fn step_loop(
     let bar = crate::run_cmd::progress_bar(steps, args.quiet || comm.rank() != 0);
     let mut interval = StepMetrics::default();
     for s in 1..=steps {
-        let stopping = dist
-            .step(stop.load(Ordering::Relaxed))
-            .map_err(CliError::runtime);
-        let stopping = agree(comm, stopping)?;
-        if let Err(e) = refuse_lasting_crossings(scene, dist) {
+        // Every rank reaches the same outcome: the step's failures are
+        // all-reduced within it.
+        let stopping = match dist.step(stop.load(Ordering::Relaxed)) {
+            Ok(stopping) => stopping,
+            Err(e) => {
+                bar.abandon();
+                return Err(on_every_rank(comm, CliError::runtime(e)));
+            }
+        };
+        if dist.deep_steps_in_a_row() >= DEEP_STEPS && !scene.allow_deep_contacts {
             bar.abandon();
-            return agree(comm, Err(e));
+            let crossed = dist.crossed_pairs();
+            return Err(agree(comm, lasting_crossings(scene, dist, crossed)).unwrap_err());
         }
         totals.accumulate(dist.metrics());
         interval.extend_interval(dist.metrics());
-        if s % args.metrics_every == 0 || s == steps {
-            write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut())?;
+        if args.metrics.is_some() && (s % args.metrics_every == 0 || s == steps) {
+            let written = write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut());
+            agree(comm, written)?;
         }
-        if dist.world.step.is_multiple_of(scene.output_every) || stopping {
-            agree(comm, write_state(scene, dist, writer.as_mut(), true))?;
+        if dist.step_number().is_multiple_of(scene.output_every) || stopping {
+            let written = write_gathered(dist, writer.as_mut(), true, true);
+            agree(comm, written)?;
         }
         if s % 16 == 0 || s == steps {
             bar.set_position(s);
@@ -224,132 +313,123 @@ fn step_loop(
     Ok(None)
 }
 
-/// Contacts deeper than the halos for DEEP_STEPS steps in a row on any
-/// rank stop the run, unless the scene allows them.
-fn refuse_lasting_crossings(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
-    if dist.deep_steps_in_a_row() < crate::run_cmd::DEEP_STEPS || scene.allow_deep_contacts {
-        return Ok(());
-    }
-    Err(CliError::runtime(format!(
-        "contacts stayed deeper than the halos for {} steps in a row (step {}, t = {:e} s); \
-         the run stops: raise the stiffness or the halo, or lower dt or the speed; \
-         simulation.allow_deep_contacts = true lets the run go on",
-        crate::run_cmd::DEEP_STEPS,
-        dist.world.step,
-        dist.world.time
-    )))
-}
-
-/// The run's simulation, new (refused when bodies cross at the start) or
-/// resumed from a checkpoint, and its first step.
-pub(crate) fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
-    match &args.resume {
-        None => {
-            let sim = Simulation::new(scene);
-            crate::run_cmd::refuse_overlaps_at_start(scene, &sim)?;
-            Ok((sim, 0))
-        }
-        Some(file) => {
-            let c = checkpoint_file::read(file)?;
-            let sim = Simulation::resume(scene, &c).map_err(|e| {
-                CliError::input(format!(
-                    "{}: does not fit the scene {}: {e}",
-                    file.display(),
-                    args.scene.display()
-                ))
-            })?;
-            Ok((sim, c.step))
-        }
+/// Contacts deeper than the halos for DEEP_STEPS steps in a row stop the
+/// run, naming the deepest pair (rank 0 has them; the others an error that
+/// rank 0 reports).
+fn lasting_crossings(
+    scene: &Scene,
+    dist: &DistributedSimulation,
+    crossed: Option<Vec<(u32, u32, f64)>>,
+) -> CliResult {
+    let when = format!(
+        "for {DEEP_STEPS} steps in a row (step {}, t = {:e} s); the run stops",
+        dist.step_number(),
+        dist.time()
+    );
+    let Some(crossed) = crossed else {
+        return Err(CliError::reported_elsewhere(1));
+    };
+    let crossed: Vec<(usize, usize, f64)> = crossed
+        .into_iter()
+        .map(|(a, b, d)| (a as usize, b as usize, d))
+        .collect();
+    match refuse_crossings(scene, &crossed, &when) {
+        Err(e) => Err(CliError::runtime(e.to_string())),
+        // Deep in the step before last, apart since.
+        Ok(()) => Err(CliError::runtime(format!(
+            "contacts stayed deeper than the halos {when}; \
+             simulation.allow_deep_contacts = true lets the run go on"
+        ))),
     }
 }
 
-/// Rank 0's output, checkpoint and metrics files, the first output step written.
-fn open_writer(args: &RunArgs, sim: &Simulation) -> CliResult<Option<Writer>> {
-    if let Some(m) = args
-        .metrics
-        .as_ref()
-        .filter(|m| m.exists() && !args.overwrite)
-    {
-        return Err(CliError::input(format!(
-            "{}: exists; choose another metrics file or replace it with --overwrite",
-            m.display()
-        )));
-    }
-    let (out, write_first, lock) = match &args.output {
+/// Rank 0's output, checkpoint and metrics files.
+fn open_writer(args: &RunArgs, scene: &Scene, time: f64) -> CliResult<Writer> {
+    let (out, first, lock) = match &args.output {
         Some(dir) => {
-            let (o, first, lock) =
-                crate::output::open_run_output(dir, args.resume.as_deref(), args.overwrite, sim)?;
+            let (o, first, lock) = crate::output::open_run_output(
+                dir,
+                args.resume.as_deref(),
+                args.overwrite,
+                &scene.world,
+                time,
+            )?;
             (Some(o), first, Some(lock))
         }
         None => (None, false, None),
     };
-    let mut out = out;
-    if let Some(o) = out.as_mut().filter(|_| write_first) {
-        o.write_step(sim)?;
-    }
     let metrics = match &args.metrics {
         Some(m) => Some(std::io::BufWriter::new(std::fs::File::create(m).map_err(
             |e| CliError::runtime(format!("{}: cannot write: {e}", m.display())),
         )?)),
         None => None,
     };
-    Ok(Some(Writer {
+    Ok(Writer {
         _lock: lock,
         out,
         checkpoint: args.output.as_ref().map(|d| d.join("checkpoint.h5")),
         metrics,
-    }))
+        first,
+    })
 }
 
-/// Gathers the state on rank 0 and writes a checkpoint (and, with `output`,
-/// an output step). Collective.
-fn write_state(
-    scene: &Scene,
+/// Gathers the state on rank 0 and writes, with `output`, an output step,
+/// and with `checkpoint`, the checkpoint. Collective.
+fn write_gathered(
     dist: &DistributedSimulation,
     writer: Option<&mut Writer>,
     output: bool,
+    checkpoint: bool,
 ) -> CliResult {
-    let gathered = dist.gather();
-    let (Some(g), Some(w)) = (gathered, writer) else {
+    let Some((c, frame)) = dist.gather(output) else {
         return Ok(());
     };
-    if let Some(o) = w.out.as_mut().filter(|_| output) {
-        let mut view = Simulation::resume(scene, &g.checkpoint)
-            .map_err(|e| CliError::runtime(format!("gathered state: {e}")))?;
-        view.show_contacts(g.contacts, g.contact_forces);
-        o.write_step(&view)?;
+    let Some(w) = writer else {
+        return Ok(());
+    };
+    if let (Some(o), Some(f)) = (w.out.as_mut(), frame.as_ref()) {
+        write_frame(o, f)?;
     }
-    if let Some(c) = &w.checkpoint {
-        checkpoint_file::write(c, &g.checkpoint)?;
+    match (&w.checkpoint, checkpoint) {
+        (Some(path), true) => checkpoint_file::write(path, &c),
+        _ => Ok(()),
     }
-    Ok(())
 }
 
-/// Gathers an interval's metrics on every rank; rank 0 writes a JSON line.
+fn write_frame(o: &mut Output, f: &Frame) -> CliResult {
+    o.write_step(f)
+}
+
+/// Gathers an interval's metrics on rank 0, which writes a JSON line.
+/// Collective (on every rank, when the run writes metrics).
 fn write_metrics(
     comm: &SimpleCommunicator,
     interval: &StepMetrics,
     writer: Option<&mut Writer>,
 ) -> CliResult {
-    let Some(file) = writer.and_then(|w| w.metrics.as_mut()) else {
-        // Collective only when rank 0 writes: it tells the others by having a file.
-        let mut writes = 0u8;
-        comm.process_at_rank(0).broadcast_into(&mut writes);
-        if writes == 1 {
-            all_gather_v(comm, std::slice::from_ref(interval));
-        }
+    let ranks = gather_v(comm, 0, std::slice::from_ref(interval));
+    let (Some(ranks), Some(file)) = (ranks, writer.and_then(|w| w.metrics.as_mut())) else {
         return Ok(());
     };
-    let mut writes = 1u8;
-    comm.process_at_rank(0).broadcast_into(&mut writes);
-    let ranks = all_gather_v(comm, std::slice::from_ref(interval));
     writeln!(file, "{}", json_line(&ranks))
         .and_then(|_| file.flush())
         .map_err(|e| CliError::runtime(format!("metrics: {e}")))
 }
 
+/// This process's peak resident memory (bytes), from /proc (0 where there
+/// is none).
+pub fn peak_rss() -> u64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.split_whitespace().next())
+        .and_then(|kb| kb.parse::<u64>().ok())
+        .map_or(0, |kb| kb * 1024)
+}
+
 /// Rank 0 prints the run's summary: time per step and, per metric, its
-/// minimum, mean and maximum over the ranks.
+/// minimum, mean and maximum over the ranks (collective).
 fn summary(
     comm: &SimpleCommunicator,
     args: &RunArgs,
@@ -357,43 +437,38 @@ fn summary(
     totals: &StepMetrics,
     steps: u64,
     secs: f64,
-    particles: usize,
 ) {
-    let ranks = all_gather_v(comm, std::slice::from_ref(totals));
-    let contacts = ranks.iter().map(|m| m.contacts).sum::<u64>();
-    let mut stats = [0u64; 2];
+    let ranks = gather_v(comm, 0, std::slice::from_ref(totals));
+    let rss = gather_v(comm, 0, &[peak_rss()]);
     let mine = [
         dist.totals.detection.deep_contacts,
         dist.totals.detection.triangle_pairs,
     ];
+    let mut stats = [0u64; 2];
     comm.all_reduce_into(&mine[..], &mut stats[..], SystemOperation::sum());
-    if comm.rank() != 0 {
+    let (Some(ranks), Some(rss)) = (ranks, rss) else {
         return;
-    }
+    };
     let per_step = |v: f64| v / steps.max(1) as f64;
     let mut table = serde_json::Map::new();
     for (name, _) in StepMetrics::default().fields() {
-        if name == "step" {
-            continue;
-        }
         let column: Vec<f64> = ranks
             .iter()
             .map(|m| per_step(m.fields().iter().find(|f| f.0 == name).map_or(0.0, |f| f.1)))
             .collect();
-        let min = column.iter().copied().fold(f64::INFINITY, f64::min);
-        let max = column.iter().copied().fold(0.0, f64::max);
-        let mean = column.iter().sum::<f64>() / column.len() as f64;
-        table.insert(
-            name.into(),
-            serde_json::json!({"min": min, "mean": mean, "max": max}),
-        );
+        table.insert(name.into(), min_mean_max(&column));
     }
+    let sections: Vec<f64> = ranks.iter().map(|m| per_step(m.sections())).collect();
+    table.insert("sections_seconds".into(), min_mean_max(&sections));
+    let contacts = ranks.iter().map(|m| m.contacts).sum::<u64>();
+    let particles = dist.particles();
+    let rss_f: Vec<f64> = rss.iter().map(|&b| b as f64).collect();
     let summary = serde_json::json!({
         "scene": args.scene.display().to_string(),
         "ranks": ranks.len(),
         "threads": rayon::current_num_threads(),
         "steps": steps,
-        "last_step": dist.world.step,
+        "last_step": dist.step_number(),
         "particles": particles,
         "seconds": secs,
         "seconds_per_step": secs / steps.max(1) as f64,
@@ -403,6 +478,7 @@ fn summary(
         "triangle_pairs_checked": stats[1],
         "triangle_imbalance": imbalance(ranks.iter().map(|m| m.owned_triangles as f64)),
         "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
+        "peak_rss_bytes": min_mean_max(&rss_f),
         "per_step_over_ranks": table,
     });
     if args.json {
@@ -425,6 +501,14 @@ fn summary(
         summary["triangle_imbalance"].as_f64().unwrap_or(1.0),
         summary["busy_imbalance"].as_f64().unwrap_or(1.0)
     );
+    let mib = |b: f64| b / (1u64 << 20) as f64;
+    let max_rss = rss_f.iter().copied().fold(0.0, f64::max);
+    let mean_rss = rss_f.iter().sum::<f64>() / rss_f.len() as f64;
+    println!(
+        "peak memory per rank   {:.1} MiB mean, {:.1} MiB max",
+        mib(mean_rss),
+        mib(max_rss)
+    );
     println!(
         "per step, over ranks   {:>12} {:>12} {:>12}",
         "min", "mean", "max"
@@ -432,13 +516,20 @@ fn summary(
     for (name, v) in &table {
         let f = |k: &str| v[k].as_f64().unwrap_or(0.0);
         println!(
-            "  {name:<20} {:>12.4e} {:>12.4e} {:>12.4e}",
+            "  {name:<24} {:>12.4e} {:>12.4e} {:>12.4e}",
             f("min"),
             f("mean"),
             f("max")
         );
     }
     if let Some(dir) = &args.output {
-        crate::run_summary::print_output_lines(dir, dist.world.step);
+        crate::run_summary::print_output_lines(dir, dist.step_number());
     }
+}
+
+fn min_mean_max(column: &[f64]) -> serde_json::Value {
+    let min = column.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = column.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
+    serde_json::json!({"min": min, "mean": mean, "max": max})
 }

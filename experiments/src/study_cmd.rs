@@ -42,8 +42,8 @@ const MEANS: [&str; 11] = [
     "partition_seconds",
     "migration_seconds",
     "wait_seconds",
-    "local_local_seconds",
-    "local_ghost_seconds",
+    "local_detection_seconds",
+    "ghost_detection_seconds",
     "force_seconds",
     "integration_seconds",
     "busy_seconds",
@@ -366,7 +366,10 @@ fn repartition_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -
             ["partition_seconds", "migration_seconds"].as_slice(),
         ),
         ("exchange wait", &["wait_seconds"]),
-        ("detection", &["local_local_seconds", "local_ghost_seconds"]),
+        (
+            "detection",
+            &["local_detection_seconds", "ghost_detection_seconds"],
+        ),
         ("forces", &["force_seconds"]),
         ("integration", &["integration_seconds"]),
     ];
@@ -483,7 +486,7 @@ fn table(ran: &[Ran]) -> String {
             1e3 * r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
             1e3 * (mean(r, "partition_seconds") + mean(r, "migration_seconds")),
             1e3 * mean(r, "wait_seconds"),
-            1e3 * (mean(r, "local_local_seconds") + mean(r, "local_ghost_seconds")),
+            1e3 * (mean(r, "local_detection_seconds") + mean(r, "ghost_detection_seconds")),
             mean_imbalance(r),
             mean(r, "ghosts_received"),
         )

@@ -1,8 +1,8 @@
 //! The contacts of the DEM split across real MPI ranks (the `contacts_mpi`
 //! example): particles placed by a partitioner and migrated, ghost bodies
-//! exchanged while the contacts among owned bodies are found, and the union
-//! of the contacts the ranks book exactly those one process finds, with the
-//! same forces, to the bit.
+//! exchanged while the contacts among owned bodies are found, each contact
+//! computed on one rank, and together exactly those one process finds, with
+//! the same forces, to the bit.
 use mpi_harness::{example_binary, MpiRun};
 
 #[test]
@@ -22,8 +22,8 @@ fn ranks_together_find_exactly_the_one_node_contacts() {
         assert!(reference > 200, "{ctx}: {reference} contacts to find");
         assert_eq!(root.parse::<u64>("gathered_contacts"), reference, "{ctx}");
         assert_eq!(root.parse::<u64>("contacts_differ"), 0, "{ctx}");
-        // Each contact booked on one rank.
-        assert_eq!(sum("last_booked_contacts"), reference, "{ctx}");
+        // Each contact computed on one rank.
+        assert_eq!(sum("last_contacts"), reference, "{ctx}");
         assert_eq!(sum("owned_particles"), 100, "{ctx}");
         for r in &run.reports {
             assert!(r.parse::<u64>("owned_particles") > 0, "{ctx}");

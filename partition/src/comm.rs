@@ -67,6 +67,38 @@ where
     recv
 }
 
+/// Gathers variable-sized blocks from every rank on `root`, in rank order:
+/// `Some` there, `None` elsewhere. What the root receives is the sum of the
+/// blocks; the other ranks hold only their own.
+pub fn gather_v<C, T>(comm: &C, root: i32, send: &[T]) -> Option<Vec<T>>
+where
+    C: Communicator,
+    T: Equivalence + Clone + Default,
+{
+    let size = comm.size() as usize;
+    let process = comm.process_at_rank(root);
+    let n = send.len() as Count;
+    let one = [T::default()];
+    let send = &never_empty(send, &one)[..n as usize];
+    if comm.rank() != root {
+        process.gather_into(&n);
+        process.gather_varcount_into(send);
+        return None;
+    }
+    let mut counts = vec![0 as Count; size];
+    process.gather_into_root(&n, &mut counts[..]);
+    let total: Count = counts.iter().sum();
+    let mut recv = vec![T::default(); total as usize];
+    let displs = displacements(&counts);
+    {
+        let mut spare = [T::default()];
+        let r = never_empty_mut(&mut recv, &mut spare);
+        let mut r = PartitionMut::new(r, &counts[..], &displs[..]);
+        process.gather_varcount_into_root(send, &mut r);
+    }
+    Some(recv)
+}
+
 /// `buf`, or when it is empty, `spare` (whose counts stay zero). An empty
 /// slice's pointer is dangling, and for a one-byte type it is 0x1: Open MPI's
 /// `MPI_IN_PLACE`. A rank that sends or receives no bytes would then ask for

@@ -124,11 +124,6 @@ impl BroadPhase {
         self.body_pairs_in_tasks_of(groups, bodies, phase, pad, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
     }
 
-    /// What the last call returned.
-    pub(crate) fn last_pairs(&self) -> &[(usize, usize)] {
-        &self.pairs
-    }
-
     /// The pairs, with the sweep in tasks of `grain` moving boxes once there
     /// are at least `parallel_from` of them.
     fn body_pairs_in_tasks_of(

@@ -87,6 +87,32 @@ pub enum Phase {
     Across,
 }
 
+/// The part a body plays in one rank's world, when a run is split across
+/// ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// A particle this rank owns (moves, and computes the contacts of).
+    Own,
+    /// A copy of a particle owned elsewhere, within reach of this rank's.
+    Ghost,
+    /// A static obstacle.
+    Obstacle,
+}
+
+/// Which of a rank's body pairs a share holds (see [`Detector::prepare`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Share {
+    /// Pairs with no ghost: they need nothing from other ranks.
+    Local = 0,
+    /// Pairs of an owned particle and a ghost of higher id.
+    Ghost = 1,
+}
+
+/// Pieces a share's pairs are examined in when messages are in flight
+/// meanwhile (see [`Detector::detect_share`]): between pieces, the caller
+/// lets them move.
+const PROGRESS_PIECES: usize = 8;
+
 /// Counts of one detection pass.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DetectionStats {
@@ -137,8 +163,12 @@ pub struct Detector {
     /// The neighbour list's skin (0: the broad phase runs in every pass).
     skin: f64,
     /// The body pairs of the last broad phase, with moving boxes inflated by
-    /// half the skin, while `travel` stays within half the skin.
-    listed: Option<Vec<(usize, usize)>>,
+    /// half the skin, while `travel` stays within half the skin; split
+    /// across ranks, in two shares (see [`Share`]), on one node all in the
+    /// first.
+    lists: [Vec<(usize, usize)>; 2],
+    /// Whether `lists` hold a neighbour list that may be kept.
+    listed: bool,
     /// How far any point of any body may have moved since the list was built.
     travel: f64,
     /// Bytes the copies of the set beyond the first may take (`None`:
@@ -237,20 +267,42 @@ impl Detector {
         moved: Option<f64>,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
+        self.travel += moved.unwrap_or(f64::INFINITY);
+        // NaN travel (a body's state gone bad) rebuilds too.
+        let keep = self.skin > 0.0 && self.travel <= 0.5 * self.skin;
+        let mut stats = self.prepare(world, halos, &[], keep);
+        contacts.clear();
+        stats += self.detect_share(world, features, halos, opts, Share::Local, None, contacts);
+        stats
+    }
+
+    /// Starts a detection whose pairs are then examined by
+    /// [`Self::detect_share`]: moves the triangle sets with the bodies, and
+    /// runs the broad phase unless `keep_list` and a neighbour list is held
+    /// (the caller then knows that no body moved farther than half the skin
+    /// since it was built). Returns the counts of the broad phase.
+    ///
+    /// `roles` (empty on one node) splits the pairs of a rank's world, whose
+    /// bodies are in the order of their ids: a pair is examined on the rank
+    /// that owns its first particle (the lower id, or the particle of a pair
+    /// with an obstacle), in [`Share::Local`] when neither body is a ghost,
+    /// in [`Share::Ghost`] when one is. Pairs that are some other rank's
+    /// business are dropped.
+    pub fn prepare(
+        &mut self,
+        world: &World,
+        halos: &[f64],
+        roles: &[Role],
+        keep_list: bool,
+    ) -> DetectionStats {
         let mut sets = std::mem::take(&mut self.sets);
         if sets.is_empty() {
             sets.push(TriangleSet::default());
         }
         let start = Instant::now();
-        let set = &mut sets[0];
-        self.travel += moved.unwrap_or(f64::INFINITY);
-        // NaN travel (a body's state gone bad) rebuilds too.
-        let keep_list = self.skin > 0.0
-            && self.travel <= 0.5 * self.skin
-            && self.listed.is_some()
-            && set.advance_lazily(world);
-        if !keep_list {
-            set.follow_world_lazily(world, halos);
+        let keep = keep_list && self.listed && sets[0].advance_lazily(world);
+        if !keep {
+            sets[0].follow_world_lazily(world, halos);
         }
         // Each thread fills and reads the moving bodies' triangles in a set of
         // its own: in one shared set, the triangles one core filled were
@@ -264,8 +316,45 @@ impl Detector {
         for r in replicas {
             r.mirror_lazily(&primary[0]);
         }
-        let triangle_update = seconds_since(start);
-        let mut listed = self.listed.take().unwrap_or_default();
+        self.times = DetectionTimes {
+            triangle_update: seconds_since(start),
+            ..DetectionTimes::default()
+        };
+        let mut stats = DetectionStats::default();
+        if !keep {
+            let start = Instant::now();
+            let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
+            let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
+            split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
+            self.times.broad_phase = seconds_since(start);
+            stats.broad_phases = 1;
+            self.travel = 0.0;
+            self.listed = self.skin > 0.0;
+        }
+        self.sets = sets;
+        stats
+    }
+
+    /// Examines one share of the pairs [`Self::prepare`] found (on one node,
+    /// [`Share::Local`] holds them all), appending their contacts to
+    /// `contacts` in pair order. With `progress`, the work is done in
+    /// pieces, and `progress` called from this thread after each (to let
+    /// messages in flight move). The
+    /// bodies of the share must be where they are to be examined: a ghost's
+    /// pose may arrive after `prepare`, before its share is examined.
+    #[allow(clippy::too_many_arguments)]
+    pub fn detect_share(
+        &mut self,
+        world: &World,
+        features: &[Features],
+        halos: &[f64],
+        opts: &Options,
+        share: Share,
+        mut progress: Option<&mut dyn FnMut()>,
+        contacts: &mut Vec<Contact>,
+    ) -> DetectionStats {
+        let list = std::mem::take(&mut self.lists[share as usize]);
+        let mut sets = std::mem::take(&mut self.sets);
         let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
         let pass = Pass {
             world,
@@ -275,34 +364,38 @@ impl Detector {
             phase: Phase::LocalLocal,
             build: Some(features),
         };
-        let (mut stats, n_tasks) = if keep_list {
-            self.times = DetectionTimes::default();
-            run_tasks(&mut self.tasks, &mut self.times, &pass, &listed)
+        let mut stats = DetectionStats::default();
+        let pieces = if progress.is_some() {
+            PROGRESS_PIECES
         } else {
-            let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.5 * self.skin);
-            if self.skin > 0.0 {
-                listed.clear();
-                listed.extend_from_slice(self.broad.last_pairs());
-                self.travel = 0.0;
-            }
-            (stats, n_tasks)
+            1
         };
-        if self.skin > 0.0 {
-            self.listed = Some(listed);
+        let per = list.len().div_ceil(pieces).max(1);
+        // An empty list is one (empty) piece: the pass runs, and is timed.
+        let empty: &[(usize, usize)] = &[];
+        let mut chunks: Vec<&[(usize, usize)]> = list.chunks(per).collect();
+        if chunks.is_empty() {
+            chunks.push(empty);
+        }
+        for piece in chunks {
+            let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece);
+            stats += s;
+            // Each task built the contacts of its own body pairs (a body
+            // pair's triangle contacts all come from one task), and the tasks
+            // hold consecutive shares of the sorted body pairs, so joining
+            // their contacts in task order gives what `body_contacts` would.
+            for task in &self.tasks[..n_tasks] {
+                contacts.extend_from_slice(&task.contacts);
+                stats.deep_contacts += task.deep;
+                stats.contacts += task.contacts.len() as u64;
+            }
+            if let Some(p) = progress.as_mut() {
+                p();
+            }
         }
         drop(views);
         self.sets = sets;
-        self.times.triangle_update = triangle_update;
-        // Each task built the contacts of its own body pairs (one phase: a
-        // body pair's triangle contacts all come from one task), and the
-        // tasks hold consecutive shares of the sorted body pairs, so joining
-        // their contacts in task order gives what `body_contacts` would.
-        contacts.clear();
-        for task in &self.tasks[..n_tasks] {
-            contacts.extend_from_slice(&task.contacts);
-            stats.deep_contacts += task.deep;
-        }
-        stats.contacts = contacts.len() as u64;
+        self.lists[share as usize] = list;
         stats
     }
 
@@ -372,6 +465,61 @@ impl Detector {
     }
 }
 
+/// The broad phase over the lazily followed `sets` (moving boxes inflated
+/// by `pad` more): pairs of group indices, sorted. Meanwhile another thread
+/// fills triangles that the tasks would otherwise fill (on one thread, it
+/// starts after the broad phase has already said stop).
+fn broad_phase<'b>(
+    broad: &'b mut broad_phase::BroadPhase,
+    world: &World,
+    sets: &[PassSet],
+    pad: f64,
+) -> &'b [(usize, usize)] {
+    let stop = AtomicBool::new(false);
+    let set = sets[0];
+    let this_thread = sets[rayon::current_thread_index().unwrap_or(0) % sets.len()];
+    let (pairs, ()) = rayon::join(
+        || {
+            let pairs = broad.body_pairs(set.groups(), &world.bodies, Phase::LocalLocal, pad);
+            stop.store(true, Ordering::Relaxed);
+            pairs
+        },
+        || this_thread.prefill_until(world, &stop),
+    );
+    pairs
+}
+
+/// Splits the broad phase's `pairs` (of `groups`, one per body) into the
+/// shares of [`Detector::prepare`]: all in the first without `roles`.
+fn split_pairs(
+    pairs: &[(usize, usize)],
+    groups: &[BodyGroup],
+    roles: &[Role],
+    lists: &mut [Vec<(usize, usize)>; 2],
+) {
+    lists.iter_mut().for_each(Vec::clear);
+    if roles.is_empty() {
+        lists[0].extend_from_slice(pairs);
+        return;
+    }
+    for &(g, h) in pairs {
+        let (a, b) = (groups[g].body as usize, groups[h].body as usize);
+        if let Some(share) = share_of(roles[a], roles[b]) {
+            lists[share as usize].push((g, h));
+        }
+    }
+}
+
+/// The share of a pair of bodies a < b (by id) on a rank, where `None`: the
+/// pair is another rank's business (see [`Detector::prepare`]).
+pub fn share_of(a: Role, b: Role) -> Option<Share> {
+    match (a, b) {
+        (Role::Own, Role::Own | Role::Obstacle) | (Role::Obstacle, Role::Own) => Some(Share::Local),
+        (Role::Own, Role::Ghost) => Some(Share::Ghost),
+        _ => None,
+    }
+}
+
 /// What one detection pass works on. With `build` (the shapes' features),
 /// each task also builds the contacts of its body pairs.
 #[derive(Clone, Copy)]
@@ -422,8 +570,7 @@ fn run_tasks(
             task.run(pass, share);
             task.busy = seconds_since(start);
         });
-    times.narrow_phase = seconds_since(start);
-    times.narrow_phase_busy = 0.0;
+    times.narrow_phase += seconds_since(start);
     let mut stats = DetectionStats::default();
     let mut counts = Counts::default();
     let (mut least, mut most) = (f64::INFINITY, f64::NEG_INFINITY);

@@ -30,7 +30,7 @@
 //! told 0 then.
 
 use super::rotation::RotationParams;
-use super::{Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
+use super::{Books, Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
 use crate::body::Body;
 use crate::contact::{Contact, Detector};
 use crate::distance::Options;
@@ -175,45 +175,22 @@ impl NormalLaw {
         ctx.normal_force.clear();
         ctx.contact_force.clear();
         ctx.normal_pairs.clear();
-        for (k, (pair, normal_force, energy, power)) in self.per_contact.iter().enumerate() {
+        self.ledger.begin();
+        for (pair, normal_force, energy, power) in &self.per_contact {
             ctx.normal_pairs.push(*pair);
             ctx.normal_force.push(*normal_force);
             ctx.contact_force.push(pair.force);
-            if ctx.books_contact(k) {
-                self.ledger.step_stored.add(*energy);
-                self.ledger.step_taken.add(power * ctx.dt);
-            }
+            self.ledger.store(*energy);
+            self.ledger.take(power * ctx.dt);
         }
         ctx.stats.normal_evaluations += ctx.contacts.len() as u64;
     }
 
-    /// Spring energy of the last evaluation (once its books are closed).
-    pub fn energy(&self) -> f64 {
-        self.ledger.stored
-    }
-
-    /// Work the dashpots have taken out of the bodies since the start.
-    pub fn dissipated(&self) -> f64 {
-        self.ledger.taken
-    }
-
-    /// What the law carries between steps: the springs' energy and the
-    /// dashpots' work.
-    pub fn state(&self) -> Vec<f64> {
-        vec![self.ledger.stored, self.ledger.taken]
-    }
-
-    pub fn restore(&mut self, values: &[f64]) -> Result<(), String> {
-        match values {
-            [energy, dissipated] if energy.is_finite() && dissipated.is_finite() => {
-                self.ledger.stored = *energy;
-                self.ledger.taken = *dissipated;
-                Ok(())
-            }
-            _ => Err(format!(
-                "the contact effect's state is two finite numbers (the springs' energy, \
-                 the dashpots' work), got {values:?}"
-            )),
+    /// The springs' energy and the dashpots' work so far.
+    pub fn books(&self) -> Books {
+        Books {
+            stored: self.ledger.stored().clone(),
+            dissipated: self.ledger.taken().clone(),
         }
     }
 }
@@ -288,31 +265,21 @@ impl Effect for ContactEffect {
             ctx.detection_times = self.detector.last_times();
         }
         self.law.apply(world, ctx);
-        for pair in &ctx.normal_pairs {
-            forces.add_pair(pair);
+        for (k, pair) in ctx.normal_pairs.iter().enumerate() {
+            forces.add_pair(k, pair);
         }
     }
 
-    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.law.energy()
+    fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
+        self.law.books()
     }
 
-    fn dissipated(&self) -> f64 {
-        self.law.dissipated()
+    fn ledger(&self) -> Option<&Ledger> {
+        Some(&self.law.ledger)
     }
 
     fn ledger_mut(&mut self) -> Option<&mut Ledger> {
         Some(&mut self.law.ledger)
-    }
-
-    /// The springs' energy (for [`Effect::potential_energy`]: contacts are
-    /// found afresh every step) and the dashpots' work so far.
-    fn state(&self) -> Option<Vec<f64>> {
-        Some(self.law.state())
-    }
-
-    fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
-        self.law.restore(values)
     }
 }
 

@@ -1,6 +1,6 @@
 //! Global viscous damping: F = −γ m v, τ = −γ_rot L (rates in 1/s).
 
-use super::{Declare, Effect, Forces, StepContext};
+use super::{Books, Declare, Effect, Forces, StepContext};
 use crate::ledger::Ledger;
 use crate::scene::Scene;
 use crate::world::World;
@@ -47,41 +47,28 @@ impl Effect for DampingEffect {
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
-        for (i, b) in world.bodies.iter().enumerate() {
-            if !b.is_static() {
-                let (f, t) = (b.v * (self.linear * b.mass), b.l * self.angular);
-                forces.force[i] -= f;
-                forces.torque[i] -= t;
-                if ctx.books_body(i) {
-                    let power = f.dot(b.v) + t.dot(b.omega());
-                    self.ledger.step_taken.add(power * ctx.dt);
-                }
-            }
+        for &i in &ctx.bodies {
+            let b = &world.bodies[i];
+            let (f, t) = (b.v * (self.linear * b.mass), b.l * self.angular);
+            // a - b is a + (-b) in IEEE arithmetic: the same bits as subtracting.
+            forces.add_with_torque(i, -f, -t);
+            let power = f.dot(b.v) + t.dot(b.omega());
+            self.ledger.take(power * ctx.dt);
         }
     }
 
-    fn dissipated(&self) -> f64 {
-        self.ledger.taken
+    fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
+        Books {
+            stored: Default::default(),
+            dissipated: self.ledger.taken().clone(),
+        }
+    }
+
+    fn ledger(&self) -> Option<&Ledger> {
+        Some(&self.ledger)
     }
 
     fn ledger_mut(&mut self) -> Option<&mut Ledger> {
         Some(&mut self.ledger)
-    }
-
-    /// The work dissipated so far.
-    fn state(&self) -> Option<Vec<f64>> {
-        Some(vec![self.ledger.taken])
-    }
-
-    fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
-        match values {
-            [w] if w.is_finite() => {
-                self.ledger.taken = *w;
-                Ok(())
-            }
-            _ => Err(format!(
-                "the damping effect's state is one finite number (the work dissipated), got {values:?}"
-            )),
-        }
     }
 }

@@ -23,7 +23,10 @@
 //! what the springs do not hold has been dissipated by sliding and damping.
 
 use super::contact::pair_ranges;
-use super::{Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
+use super::{
+    Books, ContactHistory, Declare, Effect, Forces, MaterialParam, PairForce, StepContext,
+    FORCE_GRAIN,
+};
 use crate::contact::{Contact, FeatureKey, FeatureKind};
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
@@ -55,8 +58,10 @@ impl Declare for FrictionParams {
     }
 }
 
-/// A contact's name over the whole world.
-type Key = (usize, usize, FeatureKey);
+/// A contact's name over the whole scene: its bodies' ids (`World::id`)
+/// and features. Ids, not indices: a rank's world holds some of the bodies,
+/// renumbered as they come and go, and a contact keeps its name throughout.
+type Key = (u32, u32, FeatureKey);
 
 pub struct FrictionEffect {
     laws: MaterialPairs,
@@ -76,11 +81,9 @@ pub struct FrictionEffect {
 }
 
 impl FrictionEffect {
-    /// The layout of [`FrictionEffect::values`]: a head of this many
-    /// numbers, then rows of `STATE_ROW`, one per contact, starting with its
-    /// bodies a and b.
-    pub const STATE_HEAD: usize = 2;
-    pub const STATE_ROW: usize = 8;
+    /// Numbers per row of [`ContactHistory::rows`]: a, b, the feature kind
+    /// and indices, and ξ.
+    pub const ROW: usize = 8;
 
     pub fn new(world: &World) -> Self {
         FrictionEffect {
@@ -105,32 +108,36 @@ impl Effect for FrictionEffect {
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
         self.tangential(world, ctx);
-        for pair in &ctx.tangential_pairs {
-            forces.add_pair(pair);
+        for (k, pair) in ctx.tangential_pairs.iter().enumerate() {
+            forces.add_pair(k, pair);
         }
     }
 
-    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        self.ledger.stored
+    /// The springs' energy; dissipated: the work taken out of the bodies
+    /// less what the springs hold.
+    fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
+        let mut dissipated = self.ledger.taken().clone();
+        dissipated.merge(&self.ledger.stored().negated());
+        Books {
+            stored: self.ledger.stored().clone(),
+            dissipated,
+        }
     }
 
-    /// Work taken out of the bodies less what the springs hold.
-    fn dissipated(&self) -> f64 {
-        self.ledger.taken - self.ledger.stored
+    fn ledger(&self) -> Option<&Ledger> {
+        Some(&self.ledger)
     }
 
     fn ledger_mut(&mut self) -> Option<&mut Ledger> {
         Some(&mut self.ledger)
     }
 
-    /// The work so far, the springs' energy, then per contact: a, b, the
-    /// feature kind and indices, and ξ.
-    fn state(&self) -> Option<Vec<f64>> {
-        Some(self.values())
+    fn history(&self) -> Option<&dyn ContactHistory> {
+        Some(self)
     }
 
-    fn restore(&mut self, values: &[f64], world: &World) -> Result<(), String> {
-        self.restore_values(values, world.bodies.len())
+    fn history_mut(&mut self) -> Option<&mut dyn ContactHistory> {
+        Some(self)
     }
 }
 
@@ -145,8 +152,10 @@ impl FrictionEffect {
         // both sorted by body pair.
         self.carried.clear();
         let mut at = 0;
+        let id = |i: usize| world.id(i);
         for r in &self.pairs {
-            let pair = (ctx.contacts[r.start].a, ctx.contacts[r.start].b);
+            let c = &ctx.contacts[r.start];
+            let pair = (id(c.a), id(c.b));
             while at < self.history.len() && (self.history[at].0 .0, self.history[at].0 .1) < pair {
                 at += 1;
             }
@@ -177,98 +186,101 @@ impl FrictionEffect {
             });
         self.next.clear();
         ctx.tangential_pairs.clear();
+        self.ledger.begin();
         for (k, (c, (force, xi, power))) in ctx.contacts.iter().zip(&self.results).enumerate() {
             ctx.tangential_pairs.push(*force);
             ctx.contact_force[k] += force.force;
-            self.next.push(((c.a, c.b, c.key), *xi));
-            if ctx.booked_contacts.get(k).copied().unwrap_or(true) {
-                let law = self
-                    .laws
-                    .get(world.bodies[c.a].material, world.bodies[c.b].material);
-                let stored = 0.5 * TANGENTIAL_RATIO * law.stiffness * xi.length_squared();
-                self.ledger.step_stored.add(stored);
-                self.ledger.step_taken.add(-power * dt);
-            }
+            self.next.push(((id(c.a), id(c.b), c.key), *xi));
+            let law = self
+                .laws
+                .get(world.bodies[c.a].material, world.bodies[c.b].material);
+            let stored = 0.5 * TANGENTIAL_RATIO * law.stiffness * xi.length_squared();
+            self.ledger.store(stored);
+            self.ledger.take(-power * dt);
         }
         ctx.stats.tangential_evaluations += ctx.contacts.len() as u64;
         std::mem::swap(&mut self.history, &mut self.next);
     }
+}
 
-    /// The work so far, the springs' energy, then per contact: a, b, the
-    /// feature kind and indices, and ξ.
-    pub fn values(&self) -> Vec<f64> {
-        let entry = |&((a, b, k), xi): &(Key, DVec3)| {
-            [
-                a as f64,
-                b as f64,
-                k.kind as u8 as f64,
-                k.on_a as f64,
-                k.on_b as f64,
-                xi.x,
-                xi.y,
-                xi.z,
-            ]
-        };
-        let head = [self.ledger.taken, self.ledger.stored];
-        head.into_iter()
-            .chain(self.history.iter().flat_map(entry))
-            .collect()
+impl ContactHistory for FrictionEffect {
+    fn row_len(&self) -> usize {
+        Self::ROW
     }
 
-    /// Takes back what [`FrictionEffect::values`] gave, in a world of `n` bodies.
-    pub fn restore_values(&mut self, values: &[f64], n: usize) -> Result<(), String> {
-        let fail = || {
-            Err(format!(
-                "the friction effect's state holds the work, the springs' energy, then 8 \
-                 numbers per contact (a, b, feature kind and indices, ξ), got {} numbers",
-                values.len()
-            ))
-        };
-        let [work, energy, rest @ ..] = values else {
-            return fail();
-        };
-        if rest.len() % 8 != 0 || !work.is_finite() || !energy.is_finite() {
-            return fail();
-        }
-        let index = |v: f64, below: usize| {
-            (v >= 0.0 && v.fract() == 0.0 && v < below as f64).then_some(v as usize)
-        };
-        self.history.clear();
-        for (i, e) in rest.chunks_exact(8).enumerate() {
-            let xi = DVec3::new(e[5], e[6], e[7]);
-            let kind = index(e[2], 256).and_then(|k| FeatureKind::from_index(k as u8));
-            let ids = index(e[3], u32::MAX as usize).zip(index(e[4], u32::MAX as usize));
-            let entry = index(e[0], n).zip(index(e[1], n)).zip(kind.zip(ids));
-            match entry {
-                Some(((a, b), (kind, (on_a, on_b)))) if a < b && xi.is_finite() => {
-                    let key = (
-                        a,
-                        b,
-                        FeatureKey {
-                            kind,
-                            on_a: on_a as u32,
-                            on_b: on_b as u32,
-                        },
-                    );
-                    if self.history.last().is_some_and(|last| last.0 >= key) {
-                        return Err(format!(
-                            "friction state, contact {i}: not in increasing order"
-                        ));
-                    }
-                    self.history.push((key, xi));
-                }
-                _ => {
-                    return Err(format!(
-                        "friction state, contact {i}: {e:?} is not a contact of bodies a < b \
-                         (of {n}) with a known feature kind and a finite displacement"
-                    ))
-                }
+    fn rows(&self) -> Vec<f64> {
+        self.history.iter().flat_map(row_of).collect()
+    }
+
+    fn take_rows(&mut self, leaves: &mut dyn FnMut(u32, u32) -> bool) -> Vec<f64> {
+        let mut out = Vec::new();
+        self.history.retain(|e| {
+            let (a, b, _) = e.0;
+            let go = leaves(a, b);
+            if go {
+                out.extend(row_of(e));
             }
+            !go
+        });
+        out
+    }
+
+    fn add_rows(&mut self, rows: &[f64], bodies: usize) -> Result<(), String> {
+        if !rows.len().is_multiple_of(Self::ROW) {
+            return Err(format!(
+                "the friction effect's history holds 8 numbers per contact (a, b, feature \
+                 kind and indices, ξ), got {} numbers",
+                rows.len()
+            ));
         }
-        self.ledger.taken = *work;
-        self.ledger.stored = *energy;
+        let at = self.history.len();
+        for (i, row) in rows.chunks_exact(Self::ROW).enumerate() {
+            let entry = entry_of(row, bodies).ok_or_else(|| {
+                format!(
+                    "friction history, contact {i}: {row:?} is not a contact of bodies a < b \
+                     (of {bodies}) with a known feature kind and a finite displacement"
+                )
+            })?;
+            self.history.push(entry);
+        }
+        self.history.sort_unstable_by_key(|e| e.0);
+        let twice = self.history.windows(2).position(|w| w[0].0 == w[1].0);
+        if let Some(k) = twice {
+            let ((a, b, key), _) = self.history[k];
+            self.history.truncate(at);
+            return Err(format!(
+                "friction history: contact {key:?} of bodies {a} and {b} is given twice"
+            ));
+        }
         Ok(())
     }
+}
+
+/// A history entry as a row of plain numbers.
+fn row_of(&((a, b, k), xi): &(Key, DVec3)) -> [f64; FrictionEffect::ROW] {
+    [
+        a as f64,
+        b as f64,
+        k.kind as u8 as f64,
+        k.on_a as f64,
+        k.on_b as f64,
+        xi.x,
+        xi.y,
+        xi.z,
+    ]
+}
+
+/// The entry a row names, if it is one [`row_of`] could have written in a
+/// scene of `bodies` bodies.
+fn entry_of(e: &[f64], bodies: usize) -> Option<(Key, DVec3)> {
+    let index =
+        |v: f64, below: u64| (v >= 0.0 && v.fract() == 0.0 && v < below as f64).then_some(v as u32);
+    let n = (bodies as u64).min(u32::MAX as u64);
+    let xi = DVec3::new(e[5], e[6], e[7]);
+    let kind = index(e[2], 256).and_then(|k| FeatureKind::from_index(k as u8))?;
+    let (on_a, on_b) = (index(e[3], u32::MAX as u64)?, index(e[4], u32::MAX as u64)?);
+    let (a, b) = (index(e[0], n)?, index(e[1], n)?);
+    (a < b && xi.is_finite()).then_some(((a, b, FeatureKey { kind, on_a, on_b }), xi))
 }
 
 /// The corner a contact hangs on, to carry its displacement over when the

@@ -1,6 +1,6 @@
 //! Gravity: F = m g on every particle.
 
-use super::{Declare, Effect, Forces, StepContext};
+use super::{Books, Declare, Effect, Forces, StepContext};
 use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
@@ -41,20 +41,20 @@ impl Effect for GravityEffect {
         "gravity"
     }
 
-    fn apply(&mut self, world: &World, _ctx: &mut StepContext, forces: &mut Forces) {
-        for (i, b) in world.bodies.iter().enumerate() {
-            if !b.is_static() {
-                forces.force[i] += self.g * b.mass;
-            }
+    fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {
+        for &i in &ctx.bodies {
+            forces.add(i, self.g * world.bodies[i].mass);
         }
     }
 
-    fn potential_energy(&self, world: &World, _ctx: &StepContext) -> f64 {
-        world
-            .bodies
-            .iter()
-            .filter(|b| !b.is_static())
-            .map(|b| -b.mass * self.g.dot(b.x))
-            .sum()
+    /// The potential energy −m g·x of the bodies, computed when asked (at
+    /// output steps), not every step.
+    fn books(&self, world: &World, ctx: &StepContext) -> Books {
+        let mut books = Books::default();
+        for &i in &ctx.bodies {
+            let b = &world.bodies[i];
+            books.stored.add(-b.mass * self.g.dot(b.x));
+        }
+        books
     }
 }

@@ -22,38 +22,151 @@ pub use gravity::{GravityEffect, GravityParams};
 pub use rotation::RotationParams;
 
 use crate::contact::{Contact, DetectionStats};
-use crate::ledger::Ledger;
+use crate::ledger::{ExactSum, Ledger};
 use crate::timing::DetectionTimes;
 use crate::world::World;
 use glam::DVec3;
 
 /// Force and torque on every body, accumulated by the effects.
+///
+/// Each body's force is a sum whose terms come in a fixed order: effect by
+/// effect in pipeline order, and within an effect in the order it adds them
+/// (body terms, then one per contact in contact order). Split across ranks,
+/// the terms of a body near a cut are computed on more than one rank; those
+/// bodies are *logged* ([`Forces::log_bodies`]): their terms are kept as
+/// [`ForceTerm`]s, to be summed in that order once all have arrived
+/// ([`Forces::sum_terms`]), which gives the bits one process's running sum
+/// gives.
 #[derive(Debug, Clone, Default)]
 pub struct Forces {
-    pub force: Vec<DVec3>,
-    pub torque: Vec<DVec3>,
+    force: Vec<DVec3>,
+    torque: Vec<DVec3>,
+    /// The effect now adding terms (its place in the pipeline).
+    effect: u32,
+    /// Per body, whether its terms are logged (empty: none is).
+    logged: Vec<bool>,
+    log: Vec<ForceTerm>,
+}
+
+/// One term of a logged body's force and torque.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ForceTerm {
+    pub body: u32,
+    /// The effect that added it (its place in the pipeline).
+    pub effect: u32,
+    /// The contact it acts at (an index into the evaluation's contacts), or
+    /// [`ForceTerm::BODY`] for a term on the body as a whole.
+    pub contact: u32,
+    pub force: DVec3,
+    /// `None`: the term leaves the torque untouched (adding a zero would
+    /// turn a torque of -0.0 into +0.0).
+    pub torque: Option<DVec3>,
+}
+
+impl ForceTerm {
+    pub const BODY: u32 = u32::MAX;
 }
 
 impl Forces {
+    /// Zero force and torque on `n` bodies, none logged.
     pub fn reset(&mut self, n: usize) {
         self.force.clear();
         self.force.resize(n, DVec3::ZERO);
         self.torque.clear();
         self.torque.resize(n, DVec3::ZERO);
+        self.logged.clear();
+        self.log.clear();
+        self.effect = 0;
     }
 
-    /// Applies `f` at world point `p` on body `i` (centre of mass `x`).
-    pub fn add_at(&mut self, i: usize, x: DVec3, p: DVec3, f: DVec3) {
-        self.force[i] += f;
-        self.torque[i] += (p - x).cross(f);
+    /// Logs the terms of the bodies `logged` marks (one flag per body).
+    pub fn log_bodies(&mut self, logged: &[bool]) {
+        assert_eq!(logged.len(), self.force.len(), "a flag per body");
+        self.logged.clear();
+        self.logged.extend_from_slice(logged);
     }
 
-    /// Adds a [`PairForce`]: the same sums as `add_at` on a, then on b.
-    pub fn add_pair(&mut self, f: &PairForce) {
-        self.force[f.a] += f.force;
-        self.torque[f.a] += f.torque_a;
-        self.force[f.b] += -f.force;
-        self.torque[f.b] += f.torque_b;
+    /// The terms that follow are the effect at `position` in the pipeline's.
+    pub fn begin_effect(&mut self, position: usize) {
+        self.effect = position as u32;
+    }
+
+    #[inline]
+    fn is_logged(&self, i: usize) -> bool {
+        !self.logged.is_empty() && self.logged[i]
+    }
+
+    #[inline]
+    fn term(&mut self, i: usize, contact: u32, force: DVec3, torque: Option<DVec3>) {
+        if self.is_logged(i) {
+            self.log.push(ForceTerm {
+                body: i as u32,
+                effect: self.effect,
+                contact,
+                force,
+                torque,
+            });
+            return;
+        }
+        self.force[i] += force;
+        if let Some(t) = torque {
+            self.torque[i] += t;
+        }
+    }
+
+    /// Adds force `f` to body `i` (no torque).
+    pub fn add(&mut self, i: usize, f: DVec3) {
+        self.term(i, ForceTerm::BODY, f, None);
+    }
+
+    /// Adds force `f` and torque `t` to body `i`.
+    pub fn add_with_torque(&mut self, i: usize, f: DVec3, t: DVec3) {
+        self.term(i, ForceTerm::BODY, f, Some(t));
+    }
+
+    /// Adds the [`PairForce`] of contact `k`: the terms on a, then on b.
+    pub fn add_pair(&mut self, k: usize, f: &PairForce) {
+        self.term(f.a, k as u32, f.force, Some(f.torque_a));
+        self.term(f.b, k as u32, -f.force, Some(f.torque_b));
+    }
+
+    pub fn force(&self, i: usize) -> DVec3 {
+        self.force[i]
+    }
+
+    pub fn torque(&self, i: usize) -> DVec3 {
+        self.torque[i]
+    }
+
+    /// Every body's force and torque (of a logged body: those of its terms
+    /// summed so far).
+    pub fn all(&self) -> (&[DVec3], &[DVec3]) {
+        (&self.force, &self.torque)
+    }
+
+    /// Sets body `i`'s force and torque (a checkpoint's, or a migrated body's).
+    pub fn set(&mut self, i: usize, force: DVec3, torque: DVec3) {
+        self.force[i] = force;
+        self.torque[i] = torque;
+    }
+
+    /// The logged terms, taken out.
+    pub fn take_log(&mut self) -> Vec<ForceTerm> {
+        std::mem::take(&mut self.log)
+    }
+
+    /// Sums a logged body's terms, given in the order one process adds them,
+    /// into its force and torque, from zero.
+    pub fn sum_terms(&mut self, i: usize, terms: impl IntoIterator<Item = ForceTerm>) {
+        let (mut f, mut t) = (DVec3::ZERO, DVec3::ZERO);
+        for term in terms {
+            f += term.force;
+            if let Some(x) = term.torque {
+                t += x;
+            }
+        }
+        self.force[i] = f;
+        self.torque[i] = t;
     }
 }
 
@@ -91,6 +204,12 @@ pub(crate) const FORCE_GRAIN: usize = 16;
 #[derive(Debug, Default)]
 pub struct StepContext {
     pub dt: f64,
+    /// The particles this process moves, in increasing index: the bodies the
+    /// effects act on and book. On one node every particle; split across
+    /// ranks, the rank's own (the others are copies, moved by their owners).
+    pub bodies: Vec<usize>,
+    /// This evaluation's contacts, grouped by body pair in increasing order;
+    /// split across ranks, those this rank computes (each contact on one rank).
     pub contacts: Vec<Contact>,
     /// Normal force magnitude of each contact (0 where the spring is in tension).
     pub normal_force: Vec<f64>,
@@ -101,12 +220,6 @@ pub struct StepContext {
     /// as force pairs on its two bodies.
     pub normal_pairs: Vec<PairForce>,
     pub tangential_pairs: Vec<PairForce>,
-    /// Split across ranks: whose terms this rank enters in the effects'
-    /// books, per body and per contact (empty: all). A rank holds copies of
-    /// other ranks' bodies, and a contact across a cut is computed on both
-    /// sides; each term is booked on one rank only.
-    pub booked_bodies: Vec<bool>,
-    pub booked_contacts: Vec<bool>,
     /// Whether the caller found this evaluation's contacts (split across
     /// ranks, where detection needs other ranks' bodies): the contact effect
     /// then applies its law to `contacts` as they are.
@@ -127,18 +240,6 @@ pub struct StepStats {
     pub tangential_evaluations: u64,
 }
 
-impl StepContext {
-    /// Whether body i's terms are booked here.
-    pub fn books_body(&self, i: usize) -> bool {
-        self.booked_bodies.get(i).copied().unwrap_or(true)
-    }
-
-    /// Whether contact k's terms are booked here.
-    pub fn books_contact(&self, k: usize) -> bool {
-        self.booked_contacts.get(k).copied().unwrap_or(true)
-    }
-}
-
 impl std::ops::AddAssign for StepStats {
     fn add_assign(&mut self, o: StepStats) {
         self.detection += o.detection;
@@ -147,38 +248,71 @@ impl std::ops::AddAssign for StepStats {
     }
 }
 
+/// An effect's energy books at one evaluation, as exact sums over this
+/// process's bodies and contacts (merged across ranks before rounding).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Books {
+    /// Energy the effect stores now (gravity's potential, the springs).
+    pub stored: ExactSum,
+    /// Work it has taken out of the bodies since the start and not stored
+    /// (dashpots, sliding, damping).
+    pub dissipated: ExactSum,
+}
+
+impl Books {
+    pub fn merge(&mut self, o: &Books) {
+        self.stored.merge(&o.stored);
+        self.dissipated.merge(&o.dissipated);
+    }
+}
+
+/// Per-contact state an effect carries from step to step (friction's
+/// tangential springs), as rows of plain numbers: each row starts with the
+/// contact's two body ids (a < b), as numbers. Through it the state moves
+/// with its contacts between ranks, and is checkpointed, without anyone but
+/// the effect knowing what the rest of a row means.
+pub trait ContactHistory {
+    /// Numbers per row, the two body ids included.
+    fn row_len(&self) -> usize;
+    /// Every row, in the effect's order.
+    fn rows(&self) -> Vec<f64>;
+    /// Removes the rows of the body pairs for which `leaves(a, b)` holds, and
+    /// returns them.
+    fn take_rows(&mut self, leaves: &mut dyn FnMut(u32, u32) -> bool) -> Vec<f64>;
+    /// Adds rows (of pairs this process has no rows of), in any order;
+    /// `bodies` is the number of bodies in the whole scene. Refused, naming
+    /// the row, unless each is a row this effect could have written.
+    fn add_rows(&mut self, rows: &[f64], bodies: usize) -> Result<(), String>;
+}
+
 /// One effect of the step pipeline.
 pub trait Effect: Send {
     fn name(&self) -> &'static str;
+    /// Adds the effect's forces: on `ctx.bodies`, and at `ctx.contacts`
+    /// (through [`Forces::add_pair`], in contact order).
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces);
     /// Whether the effect finds the contacts (its time includes detection).
     fn detects_contacts(&self) -> bool {
         false
     }
-    /// Potential energy the effect stores (gravity, springs), for energy checks.
-    fn potential_energy(&self, _world: &World, _ctx: &StepContext) -> f64 {
-        0.0
+    /// The effect's energy books for `ctx.bodies` and `ctx.contacts` (zero
+    /// for an effect that stores and dissipates nothing).
+    fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
+        Books::default()
     }
-    /// Work the effect has taken out of the bodies and not stored, since the
-    /// start of the run (dashpots, sliding): for energy bookkeeping.
-    fn dissipated(&self) -> f64 {
-        0.0
+    /// The books the effect keeps from step to step, if any: a checkpoint
+    /// holds them, and split across ranks each rank keeps its terms' share.
+    fn ledger(&self) -> Option<&Ledger> {
+        None
     }
-    /// The effect's energy books, whose terms each evaluation enters and the
-    /// caller closes (after merging the ranks' terms, split across ranks).
     fn ledger_mut(&mut self) -> Option<&mut Ledger> {
         None
     }
-    /// What the effect carries from one step to the next, for a checkpoint
-    /// (`None`: nothing, each step starts afresh).
-    fn state(&self) -> Option<Vec<f64>> {
+    /// The effect's per-contact state, if it keeps any.
+    fn history(&self) -> Option<&dyn ContactHistory> {
         None
     }
-    /// Takes back what [`Effect::state`] gave, in a simulation of `world`.
-    fn restore(&mut self, values: &[f64], _world: &World) -> Result<(), String> {
-        match values {
-            [] => Ok(()),
-            _ => Err(format!("the {} effect keeps no state", self.name())),
-        }
+    fn history_mut(&mut self) -> Option<&mut dyn ContactHistory> {
+        None
     }
 }
