@@ -106,23 +106,24 @@ impl World {
                 .total_cmp(&boxes[b].0[axis])
                 .then(a.cmp(&b))
         });
-        let mut candidates = Vec::new();
-        for (k, &a) in moving.iter().enumerate() {
-            for &b in moving[k + 1..]
-                .iter()
-                .take_while(|&&b| boxes[b].0[axis] <= boxes[a].1[axis])
-            {
-                candidates.push((a, b));
-            }
-            candidates.extend(fixed.iter().map(|&s| (a, s)));
-        }
+        // Tested as the sweep meets them, not collected first: in a lattice
+        // every body of a layer meets every other along the sweep axis.
         let mut out = Vec::new();
-        for (a, b) in candidates {
+        let mut test = |a: usize, b: usize| {
             for (inner, outer) in [(a, b), (b, a)] {
                 if within(boxes[inner], boxes[outer]) && self.vertex_inside(inner, outer) {
                     out.push((inner, outer));
                 }
             }
+        };
+        for (k, &a) in moving.iter().enumerate() {
+            for &b in moving[k + 1..]
+                .iter()
+                .take_while(|&&b| boxes[b].0[axis] <= boxes[a].1[axis])
+            {
+                test(a, b);
+            }
+            fixed.iter().for_each(|&s| test(a, s));
         }
         out.sort_unstable();
         out

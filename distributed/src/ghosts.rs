@@ -285,14 +285,16 @@ pub fn exchange_motions<R>(
     }
 }
 
-/// Sends each neighbour the force terms on its particles computed here
-/// (`outgoing[k]` to `lists.recv[k]`'s rank), runs `meanwhile`, then receives
-/// the terms on this rank's particles from every rank it sends ghosts to.
-/// Returns what arrived and the seconds spent waiting for it.
+/// Sends the force terms on other ranks' particles computed here
+/// (`outgoing`: per rank, its terms), runs `meanwhile`, then receives the
+/// terms on this rank's particles from the ranks in `incoming`. Returns what
+/// arrived and the seconds spent waiting for it. Both sides know from their
+/// neighbour lists which ranks exchange terms (see `term_peers`), so a
+/// message goes only where a pair across the cut may be in contact.
 pub fn return_terms(
     comm: &SimpleCommunicator,
-    lists: &GhostLists,
-    outgoing: &[Vec<TermRecord>],
+    outgoing: &[(i32, Vec<TermRecord>)],
+    incoming: &[i32],
     meanwhile: impl FnOnce(),
 ) -> (Vec<TermRecord>, f64) {
     let mut arrived = Vec::new();
@@ -300,15 +302,14 @@ pub fn return_terms(
     mpi::request::scope(|scope| {
         let sends: Vec<_> = outgoing
             .iter()
-            .zip(&lists.recv)
-            .map(|(terms, &(r, _))| {
-                comm.process_at_rank(r)
+            .map(|(r, terms)| {
+                comm.process_at_rank(*r)
                     .immediate_send_with_tag(scope, &terms[..], TERM_TAG)
             })
             .collect();
         meanwhile();
         let start = Instant::now();
-        for &(r, _) in &lists.send {
+        for &r in incoming {
             let (terms, _) = comm
                 .process_at_rank(r)
                 .matched_probe_with_tag(TERM_TAG)
@@ -321,6 +322,26 @@ pub fn return_terms(
         wait = start.elapsed().as_secs_f64();
     });
     (arrived, wait)
+}
+
+/// The ranks this rank sends force terms to and receives them from, for the
+/// life of a neighbour list: it sends to the owner of a ghost it pairs with
+/// an owned particle of lower id (`ours`: such pairs, as (own, ghost)), and
+/// receives from the owner of a ghost of lower id paired with an owned
+/// particle (`theirs`: as (ghost, own)). The owner of each pair finds the
+/// same pair in its own list, from the same bits, so the two sides agree.
+pub fn term_peers(
+    ours: &[(usize, usize)],
+    theirs: &[(usize, usize)],
+    owner: &[i32],
+) -> (Vec<i32>, Vec<i32>) {
+    let mut to: Vec<i32> = ours.iter().map(|&(_, ghost)| owner[ghost]).collect();
+    let mut from: Vec<i32> = theirs.iter().map(|&(ghost, _)| owner[ghost]).collect();
+    for v in [&mut to, &mut from] {
+        v.sort_unstable();
+        v.dedup();
+    }
+    (to, from)
 }
 
 #[cfg(test)]
@@ -353,5 +374,19 @@ mod tests {
         ];
         let s = sends(0, &boxes, &reaches);
         assert_eq!(s, vec![vec![], vec![1, 2], vec![], vec![2]]);
+    }
+
+    /// Terms go to the owners of the ghosts this rank pairs with its own
+    /// particles, and come from the owners of the ghosts of lower id paired
+    /// with them; each rank once.
+    #[test]
+    fn terms_are_exchanged_with_the_owners_of_paired_ghosts() {
+        // Bodies 0-2 owned here (rank 0), 3-4 ghosts of rank 1, 5 of rank 2.
+        let owner = [0, 0, 0, 1, 1, 2];
+        let ours = [(0, 3), (1, 3), (2, 4)];
+        let theirs = [(5, 2)];
+        let (to, from) = term_peers(&ours, &theirs, &owner);
+        assert_eq!((to, from), (vec![1], vec![2]));
+        assert_eq!(term_peers(&[], &[], &owner), (vec![], vec![]));
     }
 }

@@ -6,11 +6,13 @@
 //! them ([`local`]). See its module doc for who computes what, what travels
 //! when, and why the results do not depend on the rank count. [`ghosts`]
 //! draws and exchanges the ghost bodies, [`forces`] sums the force terms of
-//! bodies near a cut in one process's order, [`records`] names what
+//! bodies near a cut in one process's order, [`history`] moves each
+//! contact's state with its home particle, [`records`] names what
 //! travels, [`metrics`] what each rank measures per step.
 
 pub mod forces;
 pub mod ghosts;
+pub mod history;
 pub mod local;
 pub mod metrics;
 pub mod records;

@@ -59,14 +59,20 @@ impl Local {
 
     /// Makes `entries` the bodies, in id order; returns each body's force
     /// and torque, by its new index. Refused if an id comes twice.
-    pub fn set(&mut self, mut entries: Vec<Entry>) -> Result<Vec<(DVec3, DVec3)>, String> {
-        entries.sort_unstable_by_key(|e| e.id);
-        if let Some(w) = entries.windows(2).find(|w| w[0].id == w[1].id) {
+    pub fn set(&mut self, entries: Vec<Entry>) -> Result<Vec<(DVec3, DVec3)>, String> {
+        // Sorted by moving their ids, not the entries (hundreds of bytes each).
+        let mut order: Vec<(u32, usize)> = entries.iter().map(|e| e.id).zip(0..).collect();
+        order.sort_unstable();
+        if let Some(w) = order.windows(2).find(|w| w[0].0 == w[1].0) {
             return Err(format!(
                 "body {} came to this rank twice (as {:?} and {:?})",
-                w[0].id, w[0].role, w[1].role
+                w[0].0, entries[w[0].1].role, entries[w[1].1].role
             ));
         }
+        let mut slots: Vec<Option<Entry>> = entries.into_iter().map(Some).collect();
+        let entries = order
+            .iter()
+            .map(|&(_, k)| slots[k].take().expect("each entry once"));
         let w = &mut self.world;
         w.bodies.clear();
         w.ids.clear();
@@ -74,8 +80,8 @@ impl Local {
         self.owner.clear();
         self.halos.clear();
         self.owned.clear();
-        let mut loads = Vec::with_capacity(entries.len());
-        for (i, e) in entries.into_iter().enumerate() {
+        let mut loads = Vec::with_capacity(order.len());
+        for (i, e) in entries.enumerate() {
             let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
             w.ids.push(e.id);
             w.bodies.push(e.body);

@@ -46,6 +46,7 @@
 
 use crate::forces::{arrived, key, places_in_pairs, sum_logged};
 use crate::ghosts::{self, exchange_motions, return_terms, Exchange, GhostLists};
+use crate::history;
 use crate::local::{Entry, Local};
 use crate::metrics::StepMetrics;
 use crate::records::{BodyRecord, ContactRecord, Motion, StateRecord, TermKey, TermRecord};
@@ -112,10 +113,10 @@ pub struct DistributedSimulation<'c> {
     ctx: StepContext,
     lists: GhostLists,
     /// Per body: whether its force terms are logged (ghosts, and owned
-    /// bodies that are ghosts elsewhere), and for a ghost its neighbour's
-    /// place in `lists.recv`.
+    /// bodies that are ghosts elsewhere).
     logged: Vec<bool>,
-    recv_slot: Vec<usize>,
+    /// The ranks force terms go to and come from, for the neighbour list's life.
+    term_peers: (Vec<i32>, Vec<i32>),
     lists_stale: bool,
     /// How far any body may have moved since the lists were drawn.
     travel: f64,
@@ -137,43 +138,49 @@ impl<'c> DistributedSimulation<'c> {
     /// Splits `scene`, from its start or a checkpoint of it, across the
     /// ranks of `comm` (collective). A fresh run evaluates its initial
     /// forces, as one process does.
+    ///
+    /// The scene's bodies are taken out of it: each rank keeps those dealt
+    /// to it, and holds no list of the whole scene's bodies from then on.
     pub fn new(
         comm: &'c SimpleCommunicator,
-        scene: &Scene,
+        scene: &mut Scene,
         start: Start,
         settings: Settings,
     ) -> Result<Self, String> {
+        let (me, size) = (comm.rank(), comm.size());
+        let world = &scene.world;
+        let (bodies, particles) = (world.bodies.len(), world.dynamic_count());
         if let Start::Resume(c) = start {
             check_checkpoint(scene, c).map_err(|e| e.to_string())?;
+            // The whole state checked on every rank, so that all refuse alike.
+            dem::simulation::restore_effects(&mut build_effects(scene), &c.effects, bodies)
+                .map_err(|e| e.to_string())?;
         }
-        let world = &scene.world;
+        let fingerprint = world.fingerprint();
         let halo = |b: &Body| world.materials[b.material].halo.unwrap_or(0.0);
         let max_halo = world.bodies.iter().map(halo).fold(0.0, f64::max);
+        let (entries, obstacles) = dealt(scene, start_state(&start), me, size);
+        let dealt_to = dealt_ranks(&scene.world, size);
+        scene.world.bodies = Vec::new();
+        let mut effects = build_effects(scene);
+        if let Start::Resume(c) = start {
+            restore_share(&mut effects, c, &dealt_to, me, bodies)?;
+        }
+        drop(dealt_to);
         let part = settings
             .partitioner
             .create(comm, max_halo)
             .map_err(|e| e.to_string())?;
+        let world = &scene.world;
         let mut local = Local::new(world.shapes.clone(), world.materials.clone());
-        let (entries, obstacles) = dealt(scene, start_state(&start), comm.rank(), comm.size());
         let loads = local.set(entries)?;
-        let mut effects = build_effects(scene);
-        if let Start::Resume(c) = start {
-            // The whole state checked on every rank, so that all refuse alike.
-            dem::simulation::restore_effects(
-                &mut build_effects(scene),
-                &c.effects,
-                world.bodies.len(),
-            )
-            .map_err(|e| e.to_string())?;
-            restore_share(&mut effects, c, scene, comm.rank(), comm.size())?;
-        }
         let mut s = DistributedSimulation {
             comm,
             part,
             settings,
-            bodies: world.bodies.len(),
-            particles: world.dynamic_count(),
-            fingerprint: world.fingerprint(),
+            bodies,
+            particles,
+            fingerprint,
             dt: scene.dt,
             rotation: scene.effects.has::<RotationParams>(),
             detects: effects.iter().any(|e| e.detects_contacts()),
@@ -189,7 +196,7 @@ impl<'c> DistributedSimulation<'c> {
             },
             lists: GhostLists::default(),
             logged: Vec::new(),
-            recv_slot: Vec::new(),
+            term_peers: Default::default(),
             lists_stale: true,
             travel: 0.0,
             steps_run: 0,
@@ -402,6 +409,10 @@ impl<'c> DistributedSimulation<'c> {
         let mut stats = self
             .detector
             .prepare(&local.world, &local.halos, &local.roles, !redraw);
+        if redraw {
+            let ours = self.detector.share(Share::Ghost);
+            self.term_peers = ghosts::term_peers(ours, self.detector.theirs(), &local.owner);
+        }
         let [mut near, mut far] = std::mem::take(&mut self.found);
         near.clear();
         far.clear();
@@ -471,20 +482,29 @@ impl<'c> DistributedSimulation<'c> {
         let log = self.forces.take_log();
         let places = places_in_pairs(&self.ctx.contacts);
         let world = &self.local.world;
-        let mut outgoing: Vec<Vec<TermRecord>> = vec![Vec::new(); self.lists.recv.len()];
+        let (to, from) = &self.term_peers;
+        let mut outgoing: Vec<(i32, Vec<TermRecord>)> =
+            to.iter().map(|&r| (r, Vec::new())).collect();
         let mut mine: Vec<(usize, TermKey, ForceTerm)> = Vec::new();
         for t in log {
             let i = t.body as usize;
             let k = key(&t, world, &self.ctx.contacts, &places);
             match self.local.roles[i] {
                 Role::Ghost => {
-                    outgoing[self.recv_slot[i]].push(TermRecord::new(world.id(i), k, &t))
+                    let owner = self.local.owner[i];
+                    match to.binary_search(&owner) {
+                        Ok(slot) => outgoing[slot].1.push(TermRecord::new(world.id(i), k, &t)),
+                        Err(_) => self.broken(&format!(
+                            "a force term on body {}, whose owner {owner} pairs with none here",
+                            world.id(i)
+                        )),
+                    }
                 }
                 Role::Own => mine.push((i, k, t)),
                 Role::Obstacle => {}
             }
         }
-        let sent: u64 = outgoing.iter().map(|o| o.len() as u64).sum();
+        let sent: u64 = outgoing.iter().map(|o| o.1.len() as u64).sum();
         self.metrics.terms_sent = sent;
         self.metrics.term_bytes_sent = sent * std::mem::size_of::<TermRecord>() as u64;
         let (h, rot) = (self.dt, self.rotation);
@@ -497,7 +517,7 @@ impl<'c> DistributedSimulation<'c> {
                 }
             }
         };
-        let (received, wait) = return_terms(self.comm, &self.lists, &outgoing, || {
+        let (received, wait) = return_terms(self.comm, &outgoing, from, || {
             if kick {
                 kick_where(local, forces, false);
             }
@@ -568,12 +588,7 @@ impl<'c> DistributedSimulation<'c> {
             .map(|(r, recs)| (*r, recs.iter().map(|rec| index(rec.id as u32)).collect()))
             .collect();
         self.lists = GhostLists { send, recv };
-        let n = local.world.bodies.len();
         self.logged = local.roles.iter().map(|&r| r == Role::Ghost).collect();
-        self.recv_slot = vec![usize::MAX; n];
-        for (slot, (_, ids)) in self.lists.recv.iter().enumerate() {
-            ids.iter().for_each(|&i| self.recv_slot[i] = slot);
-        }
         for (_, ids) in &self.lists.send {
             ids.iter().for_each(|&i| self.logged[i] = true);
         }
@@ -686,36 +701,14 @@ impl<'c> DistributedSimulation<'c> {
         let new_owner = |id: u32| {
             owner_of
                 .binary_search_by_key(&id, |o| o.0)
+                .ok()
                 .map(|k| owner_of[k].1)
         };
         for e in self.effects.iter_mut() {
             let Some(history) = e.history_mut() else {
                 continue;
             };
-            let row = history.row_len();
-            let mut outbox: Vec<Vec<f64>> = vec![Vec::new(); size];
-            let mut lost = None;
-            let leaving = history.take_rows(&mut |a, b| {
-                let home = if is_obstacle(a) { b } else { a };
-                match new_owner(home) {
-                    Ok(r) => r != me,
-                    Err(_) => {
-                        lost = Some(home);
-                        false
-                    }
-                }
-            });
-            if let Some(home) = lost {
-                return fail(format!(
-                    "contact history of particle {home}, which this rank does not own"
-                ));
-            }
-            for r in leaving.chunks_exact(row) {
-                let (a, b) = (r[0] as u32, r[1] as u32);
-                let home = if is_obstacle(a) { b } else { a };
-                let to = new_owner(home).expect("checked above");
-                outbox[to as usize].extend_from_slice(r);
-            }
+            let outbox = history::leaving(history, me, size, is_obstacle, new_owner)?;
             let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
             let flat: Vec<f64> = outbox.into_iter().flatten().collect();
             let (arrived, _) = all_to_all_v(self.comm, &flat, &counts);
@@ -790,7 +783,7 @@ impl<'c> DistributedSimulation<'c> {
             };
             let row = e.history().map_or(0, |h| h.row_len());
             let rows = e.history().map(|h| h.rows()).unwrap_or_default();
-            let rows = gather_v(self.comm, 0, &rows).map(|r| sorted_rows(r, row));
+            let rows = gather_v(self.comm, 0, &rows).map(|r| history::sorted_rows(r, row));
             if let (Some(v), Some(stored), Some(taken), Some(history)) =
                 (out.as_mut(), stored, taken, rows)
             {
@@ -981,25 +974,33 @@ fn start_time(start: &Start) -> (f64, u64) {
     }
 }
 
-/// Restores this rank's share of the effects' states from `checkpoint`:
-/// the books on rank 0 (exact sums: the others' share is zero), and the
-/// history of the contacts whose home particle was dealt to this rank.
+/// Per body, the rank its particle was dealt to (-1 for an obstacle).
+fn dealt_ranks(world: &dem::world::World, size: i32) -> Vec<i32> {
+    let mut k = 0;
+    world
+        .bodies
+        .iter()
+        .map(|b| {
+            if b.is_static() {
+                return -1;
+            }
+            k += 1;
+            (k - 1) % size
+        })
+        .collect()
+}
+
+/// Restores this rank's share of the effects' states from `checkpoint` (of
+/// a scene of `bodies` bodies): the books on rank 0 (exact sums: the
+/// others' share is zero), and the history of the contacts whose home
+/// particle was dealt to this rank (`dealt_to`, per body).
 fn restore_share(
     effects: &mut [Box<dyn Effect>],
     checkpoint: &Checkpoint,
-    scene: &Scene,
+    dealt_to: &[i32],
     me: i32,
-    size: i32,
+    bodies: usize,
 ) -> Result<(), String> {
-    let world = &scene.world;
-    let mut dealt_to = vec![-1; world.bodies.len()];
-    let mut k = 0;
-    for (i, b) in world.bodies.iter().enumerate() {
-        if !b.is_static() {
-            dealt_to[i] = k % size;
-            k += 1;
-        }
-    }
     let states: Vec<EffectState> = checkpoint
         .effects
         .iter()
@@ -1029,7 +1030,7 @@ fn restore_share(
             s
         })
         .collect();
-    dem::simulation::restore_effects(effects, &states, world.bodies.len())
+    dem::simulation::restore_effects(effects, &states, bodies)
         .map_err(|e: CheckpointError| e.to_string())
 }
 
@@ -1045,22 +1046,6 @@ fn merge_sums(comm: &SimpleCommunicator, parts: &[f64]) -> Option<ExactSum> {
         at += n as usize;
     }
     Some(sum)
-}
-
-/// History rows in their order (lexicographic, as `ContactHistory` writes them).
-fn sorted_rows(rows: Vec<f64>, row: usize) -> Vec<f64> {
-    if row == 0 {
-        return rows;
-    }
-    let mut chunks: Vec<&[f64]> = rows.chunks_exact(row).collect();
-    chunks.sort_by(|x, y| {
-        x.iter()
-            .zip(y.iter())
-            .map(|(p, q)| p.total_cmp(q))
-            .find(|o| o.is_ne())
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
-    chunks.into_iter().flatten().copied().collect()
 }
 
 /// `near` and `far` (each grouped by body pair, in pair order, no pair in

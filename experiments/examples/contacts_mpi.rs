@@ -51,7 +51,7 @@ fn main() {
             .get::<dem::effects::ContactParams>()
             .map_or(0.0, |c| c.skin),
     };
-    let mut dist = DistributedSimulation::new(&comm, &scene, Start::Fresh, settings)
+    let mut dist = DistributedSimulation::new(&comm, &mut scene.clone(), Start::Fresh, settings)
         .unwrap_or_else(|e| panic!("{e}"));
     let (mut sent, mut received) = (0, 0);
     for _ in 0..steps {

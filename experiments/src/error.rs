@@ -43,6 +43,14 @@ impl CliError {
     pub fn exit_code(&self) -> u8 {
         self.code
     }
+
+    /// The same error, its message led by `context` (the file it concerns).
+    pub fn within(self, context: impl fmt::Display) -> Self {
+        CliError {
+            message: format!("{context}: {}", self.message),
+            code: self.code,
+        }
+    }
 }
 
 impl fmt::Display for CliError {

@@ -21,10 +21,26 @@ mod study_cmd;
 mod study_node;
 
 use clap::Parser;
+
+/// This process's rank when an MPI launcher started it (read from the
+/// launcher's environment, before MPI is initialised).
+fn launched_rank() -> Option<u32> {
+    ["OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"]
+        .iter()
+        .find_map(|v| std::env::var(v).ok()?.parse().ok())
+}
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let cli = cli::Cli::parse();
+    let cli = match cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        // Under an MPI launcher every rank parses the same command line:
+        // rank 0 alone says what is wrong with it (or prints the help).
+        Err(e) if launched_rank().is_some_and(|r| r != 0) => {
+            return ExitCode::from(e.exit_code() as u8);
+        }
+        Err(e) => e.exit(),
+    };
     let result = match cli.command {
         cli::Command::Info(args) => info::run(&args),
         cli::Command::Distance(args) => distance_cmd::run(&args),

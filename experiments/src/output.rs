@@ -27,6 +27,7 @@
 
 use crate::error::{create_output_dir, CliError, CliResult};
 use dem::frame::Frame;
+use dem::mesh::TriMesh;
 use dem::world::World;
 use ndarray::{Array1, Array2};
 use std::fmt::Write as _;
@@ -92,7 +93,7 @@ pub fn open_run_output(
     dir: &Path,
     resume: Option<&Path>,
     overwrite: bool,
-    world: &World,
+    layout: &Layout,
     time: f64,
 ) -> CliResult<(Output, bool, DirLock)> {
     let run_h5 = dir.join("run.h5");
@@ -109,7 +110,7 @@ pub fn open_run_output(
         // Its own checkpoint is the truth of the directory: output steps
         // past it were written by a run killed before its checkpoint.
         let own = same_file(from, &dir.join("checkpoint.h5"));
-        let (out, current) = Output::append(dir, world, time, own)?;
+        let (out, current) = Output::append(dir, layout, time, own)?;
         return Ok((out, !current, lock));
     }
     let checkpoint = dir.join("checkpoint.h5");
@@ -118,7 +119,7 @@ pub fn open_run_output(
             CliError::runtime(format!("{}: cannot replace: {e}", checkpoint.display()))
         })?;
     }
-    Ok((Output::create(dir, world)?, true, lock))
+    Ok((Output::create(dir, layout)?, true, lock))
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -128,14 +129,29 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// What a run's output is made of, whatever its state: the shapes, and
+/// which body has which (obstacles included, in id order).
+#[derive(Debug, Clone)]
+pub struct Layout {
+    pub shapes: Vec<TriMesh>,
+    pub body_shapes: Vec<usize>,
+}
+
+impl Layout {
+    pub fn of(world: &World) -> Layout {
+        Layout {
+            shapes: world.shapes.clone(),
+            body_shapes: world.bodies.iter().map(|b| b.shape).collect(),
+        }
+    }
+}
+
 pub struct Output {
     file: hdf5::File,
     dir: PathBuf,
     steps: Vec<StepIndex>,
-    /// What the surface is made of: the shapes, each body's shape, and the
-    /// surface's size.
-    shapes: Vec<dem::mesh::TriMesh>,
-    body_shapes: Vec<usize>,
+    layout: Layout,
+    /// The surface's size: points (mesh vertices) and triangles.
     points: usize,
     triangles: usize,
 }
@@ -154,15 +170,15 @@ fn h5err(e: hdf5::Error) -> CliError {
 }
 
 impl Output {
-    /// The output of a run of `world` (its shapes and which body has which;
-    /// the bodies' states come with each step).
-    pub fn create(dir: &Path, world: &World) -> CliResult<Output> {
+    /// The output of a run of `layout` (the bodies' states come with each
+    /// step).
+    pub fn create(dir: &Path, layout: &Layout) -> CliResult<Output> {
         create_output_dir(dir)?;
         let path = dir.join("run.h5");
         let file = hdf5::File::create(&path)
             .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))?;
         let shapes = file.create_group("shapes").map_err(h5err)?;
-        for (i, m) in world.shapes.iter().enumerate() {
+        for (i, m) in layout.shapes.iter().enumerate() {
             let g = shapes.create_group(&i.to_string()).map_err(h5err)?;
             let v = Array2::from_shape_fn((m.vertices.len(), 3), |(r, c)| m.vertices[r][c]);
             let t = Array2::from_shape_fn((m.triangles.len(), 3), |(r, c)| m.triangles[r][c]);
@@ -175,16 +191,16 @@ impl Output {
                 .create("triangles")
                 .map_err(h5err)?;
         }
-        let mut out = Output::of(file, dir, world);
+        let mut out = Output::of(file, dir, layout);
         out.write_connectivity()?;
         out.file.create_group("steps").map_err(h5err)?;
         Ok(out)
     }
 
-    fn of(file: hdf5::File, dir: &Path, world: &World) -> Output {
-        let body_shapes: Vec<usize> = world.bodies.iter().map(|b| b.shape).collect();
-        let count = |f: fn(&dem::mesh::TriMesh) -> usize| {
-            body_shapes.iter().map(|&s| f(&world.shapes[s])).sum()
+    fn of(file: hdf5::File, dir: &Path, layout: &Layout) -> Output {
+        let count = |f: fn(&TriMesh) -> usize| {
+            let shapes = &layout.shapes;
+            layout.body_shapes.iter().map(|&s| f(&shapes[s])).sum()
         };
         Output {
             file,
@@ -192,8 +208,7 @@ impl Output {
             steps: Vec::new(),
             points: count(|m| m.vertices.len()),
             triangles: count(|m| m.triangles.len()),
-            shapes: world.shapes.clone(),
-            body_shapes,
+            layout: layout.clone(),
         }
     }
 
@@ -203,8 +218,8 @@ impl Output {
         let mut triangles = Vec::with_capacity(self.triangles);
         let mut body = Vec::with_capacity(self.triangles);
         let mut first = 0u32;
-        for (i, &s) in self.body_shapes.iter().enumerate() {
-            let m = &self.shapes[s];
+        for (i, &s) in self.layout.body_shapes.iter().enumerate() {
+            let m = &self.layout.shapes[s];
             for t in &m.triangles {
                 triangles.push(t.map(|v| first + v));
                 body.push(i as u32);
@@ -224,7 +239,7 @@ impl Output {
         Ok(())
     }
 
-    /// Opens the output of a run of `world` that resumes at `time`, to
+    /// Opens the output of a run of `layout` that resumes at `time`, to
     /// append to it; and whether its last step is the resumed state (a
     /// checkpoint is taken with each output step). Output steps of a later
     /// time are dropped when `drop_later` (the directory's own checkpoint is
@@ -233,7 +248,7 @@ impl Output {
     /// than the checkpoint, and appending would interleave two histories.
     pub fn append(
         dir: &Path,
-        world: &World,
+        layout: &Layout,
         time: f64,
         drop_later: bool,
     ) -> CliResult<(Output, bool)> {
@@ -270,14 +285,14 @@ impl Output {
         if steps.iter().enumerate().any(|(i, s)| s.k != i) {
             return Err(fail("output steps are not numbered 0, 1, 2, ...".into()));
         }
-        let n = world.bodies.len();
+        let n = layout.body_shapes.len();
         if let Some(s) = steps.iter().find(|s| s.bodies != n) {
             return Err(fail(format!(
                 "output step {} has {} bodies, the resumed run {n}",
                 s.k, s.bodies
             )));
         }
-        let mut out = Output::of(file, dir, world);
+        let mut out = Output::of(file, dir, layout);
         if triangles != out.triangles {
             return Err(fail(format!(
                 "its surface has {triangles} triangles, the resumed run's {}",
@@ -306,8 +321,16 @@ impl Output {
         Ok((out, current))
     }
 
-    /// Writes `frame` as the next output step, then rewrites the XDMF index.
+    /// Writes `frame` as the next output step, then rewrites the XDMF index;
+    /// an error names the file (a full disk, say).
     pub fn write_step(&mut self, frame: &Frame) -> CliResult {
+        let path = self.dir.join("run.h5");
+        let k = self.steps.len();
+        self.write_frame(frame)
+            .map_err(|e| e.within(format!("{}: cannot write output step {k}", path.display())))
+    }
+
+    fn write_frame(&mut self, frame: &Frame) -> CliResult {
         let k = self.steps.len();
         let b = &frame.bodies;
         let n = b.len();
@@ -368,12 +391,17 @@ impl Output {
             .map_err(h5err)?;
         let mut block: Vec<f64> = Vec::new();
         let (mut at, mut first) = (0usize, 0usize);
+        let Layout {
+            shapes,
+            body_shapes,
+        } = &self.layout;
         for (i, state) in frame.bodies.iter().enumerate() {
-            for &v in &self.shapes[self.body_shapes[i]].vertices {
+            let vertices = &shapes[body_shapes[i]].vertices;
+            for &v in vertices {
                 let p = state.x + state.q * v;
                 block.extend(p.to_array());
             }
-            at += self.shapes[self.body_shapes[i]].vertices.len();
+            at += vertices.len();
             if block.len() >= SURFACE_BLOCK || i + 1 == frame.bodies.len() {
                 let rows = block.len() / 3;
                 let a = Array2::from_shape_vec((rows, 3), std::mem::take(&mut block))

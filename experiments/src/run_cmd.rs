@@ -149,7 +149,7 @@ impl RunFiles {
             dir,
             args.resume.as_deref(),
             args.overwrite,
-            &sim.world,
+            &crate::output::Layout::of(&sim.world),
             sim.world.time,
         )?;
         Ok(RunFiles {

@@ -9,7 +9,7 @@
 use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
-use crate::output::Output;
+use crate::output::{Layout, Output};
 use crate::run_cmd::{describe, refuse_crossings, refuse_overlaps_at_start, DEEP_STEPS};
 use dem::checkpoint::Checkpoint;
 use dem::frame::Frame;
@@ -90,7 +90,7 @@ struct Writer {
     _lock: Option<crate::output::DirLock>,
     out: Option<Output>,
     checkpoint: Option<std::path::PathBuf>,
-    metrics: Option<std::io::BufWriter<std::fs::File>>,
+    metrics: Option<(std::path::PathBuf, std::io::BufWriter<std::fs::File>)>,
     /// Whether the present state is still to be written as an output step.
     first: bool,
 }
@@ -103,7 +103,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let stop = crate::run_cmd::stop_on_signals()?;
     agree(comm, crate::run_cmd::refuse_resume_without_output(args))?;
     agree(comm, refuse_metrics_over(args))?;
-    let scene = agree(
+    let mut scene = agree(
         comm,
         Scene::load_with(&args.scene, &args.overrides).map_err(|e| CliError::input(e.to_string())),
     )?;
@@ -114,11 +114,16 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     }
     let settings = agree(comm, settings(args, &scene))?;
     // Cores are shared by the ranks of a node: one thread each unless told.
+    // The main thread is one of the pool's: a parallel section starts in
+    // place instead of being handed to another thread and waited for (which
+    // cost more than a small rank's detection), and MPI is still called from
+    // the main thread only (MPI_THREAD_FUNNELED).
     let threads = args.threads.unwrap_or(1);
     agree(
         comm,
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
+            .use_current_thread()
             .build_global()
             .map_err(|e| CliError::runtime(e.to_string())),
     )?;
@@ -129,7 +134,11 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         Some(c) => Start::Resume(c),
         None => Start::Fresh,
     };
-    let dist = DistributedSimulation::new(comm, &scene, start_with, settings);
+    // What rank 0 needs of the whole scene later, taken before the
+    // simulation takes the scene's bodies (no rank keeps them).
+    let told = describe(args, &scene, steps);
+    let layout = (me == 0).then(|| Layout::of(&scene.world));
+    let dist = DistributedSimulation::new(comm, &mut scene, start_with, settings);
     let dist = agree(
         comm,
         dist.map_err(|e| match &args.resume {
@@ -146,7 +155,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     // Only rank 0 touches the disk, once every check has passed; the
     // others learn whether it could.
     let writer = match me {
-        0 => open_writer(args, &scene, dist.time()).map(Some),
+        0 => open_writer(args, layout.as_ref(), dist.time()).map(Some),
         _ => Ok(None),
     };
     let mut writer = agree(comm, writer)?;
@@ -157,7 +166,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         agree(comm, written)?;
     }
     if me == 0 {
-        announce(args, &scene, &settings, steps, comm.size(), threads);
+        announce(&told, &settings, comm.size(), threads);
     }
     let mut totals = StepMetrics::default();
     let start = Instant::now();
@@ -183,7 +192,8 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         ));
         return Err(on_every_rank(comm, e));
     }
-    if steps > 0 && !dist.step_number().is_multiple_of(scene.output_every) {
+    if args.output.is_some() && steps > 0 && !dist.step_number().is_multiple_of(scene.output_every)
+    {
         let written = write_gathered(&dist, writer.as_mut(), false, true);
         agree(comm, written)?;
     }
@@ -241,18 +251,10 @@ fn refuse_start(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
     refuse_overlaps_at_start(scene, &crossed, &enclosed)
 }
 
-/// What the run is, on one line of rank 0's standard error.
-fn announce(
-    args: &RunArgs,
-    scene: &Scene,
-    settings: &Settings,
-    steps: u64,
-    ranks: i32,
-    threads: usize,
-) {
+/// What the run is (`told`: the scene), on one line of rank 0's standard error.
+fn announce(told: &str, settings: &Settings, ranks: i32, threads: usize) {
     eprintln!(
-        "{}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}",
-        describe(args, scene, steps),
+        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}",
         settings.partitioner.name(),
         settings.exchange.name(),
         settings
@@ -343,27 +345,31 @@ fn lasting_crossings(
     }
 }
 
-/// Rank 0's output, checkpoint and metrics files.
-fn open_writer(args: &RunArgs, scene: &Scene, time: f64) -> CliResult<Writer> {
-    let (out, first, lock) = match &args.output {
-        Some(dir) => {
+/// Rank 0's output, checkpoint and metrics files (`layout`: the scene's).
+fn open_writer(args: &RunArgs, layout: Option<&Layout>, time: f64) -> CliResult<Writer> {
+    let (out, first, lock) = match (&args.output, layout) {
+        (Some(dir), Some(layout)) => {
             let (o, first, lock) = crate::output::open_run_output(
                 dir,
                 args.resume.as_deref(),
                 args.overwrite,
-                &scene.world,
+                layout,
                 time,
             )?;
             (Some(o), first, Some(lock))
         }
-        None => (None, false, None),
+        _ => (None, false, None),
     };
-    let metrics = match &args.metrics {
-        Some(m) => Some(std::io::BufWriter::new(std::fs::File::create(m).map_err(
-            |e| CliError::runtime(format!("{}: cannot write: {e}", m.display())),
-        )?)),
-        None => None,
-    };
+    let metrics =
+        match &args.metrics {
+            Some(m) => Some((
+                m.clone(),
+                std::io::BufWriter::new(std::fs::File::create(m).map_err(|e| {
+                    CliError::runtime(format!("{}: cannot write: {e}", m.display()))
+                })?),
+            )),
+            None => None,
+        };
     Ok(Writer {
         _lock: lock,
         out,
@@ -408,12 +414,12 @@ fn write_metrics(
     writer: Option<&mut Writer>,
 ) -> CliResult {
     let ranks = gather_v(comm, 0, std::slice::from_ref(interval));
-    let (Some(ranks), Some(file)) = (ranks, writer.and_then(|w| w.metrics.as_mut())) else {
+    let (Some(ranks), Some((path, file))) = (ranks, writer.and_then(|w| w.metrics.as_mut())) else {
         return Ok(());
     };
     writeln!(file, "{}", json_line(&ranks))
         .and_then(|_| file.flush())
-        .map_err(|e| CliError::runtime(format!("metrics: {e}")))
+        .map_err(|e| CliError::runtime(format!("{}: cannot write: {e}", path.display())))
 }
 
 /// This process's peak resident memory (bytes), from /proc (0 where there

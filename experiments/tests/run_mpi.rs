@@ -196,13 +196,15 @@ fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
 }
 
 /// Positions, velocities and energies of every output step, as bits.
+/// Each output step as bits, the time first.
 fn output_steps(run_h5: &Path) -> Vec<Vec<u64>> {
     let f = hdf5::File::open(run_h5).unwrap();
     let steps = f.group("steps").unwrap();
     (0..steps.member_names().unwrap().len())
         .map(|k| {
             let g = steps.group(&k.to_string()).unwrap();
-            let mut bits = Vec::new();
+            let time: f64 = g.attr("time").unwrap().read_scalar().unwrap();
+            let mut bits = vec![time.to_bits()];
             for d in ["positions", "velocities", "angular_momenta", "orientations"] {
                 let a: ndarray::Array2<f64> = g.dataset(d).unwrap().read_2d().unwrap();
                 bits.extend(a.iter().map(|x| x.to_bits()));
@@ -219,48 +221,171 @@ fn output_steps(run_h5: &Path) -> Vec<Vec<u64>> {
         .collect()
 }
 
-#[test]
-fn a_run_resumed_on_other_rank_counts_goes_on_to_the_bit() {
-    let dir = temp("resume");
-    let hopper = scene("hopper.toml");
-    let hopper = hopper.to_str().unwrap();
+/// `scene_file` run `parts` in turn into one directory, each part (ranks,
+/// steps) resuming the last one's checkpoint, gives the checkpoint and the
+/// output steps of one uninterrupted process.
+fn resumed_across_rank_counts(name: &str, scene_file: &Path, parts: &[(usize, u64)]) {
+    let dir = temp(name);
+    let scene_file = scene_file.to_str().unwrap();
     let (one, split) = (dir.join("one"), dir.join("split"));
+    let total: u64 = parts.iter().map(|p| p.1).sum();
+    let total = total.to_string();
+    let one_out = one.to_str().unwrap();
     let r = run(
         1,
         &[
-            "run",
-            hopper,
-            "--steps",
-            "3500",
-            "--quiet",
-            "--output",
-            one.to_str().unwrap(),
+            "run", scene_file, "--steps", &total, "--quiet", "--output", one_out,
         ],
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
     let out = split.to_str().unwrap();
     let checkpoint = split.join("checkpoint.h5");
     let c = checkpoint.to_str().unwrap();
-    // 1 rank, then 3, then 2: the checkpoints are plain data, not a rank's.
-    for (ranks, resume) in [(1, false), (3, true), (2, true)] {
-        let mut args = vec!["run", hopper, "--steps", "1000", "--quiet", "--output", out];
-        if resume {
+    for (k, &(ranks, steps)) in parts.iter().enumerate() {
+        let steps = steps.to_string();
+        let mut args = vec![
+            "run", scene_file, "--steps", &steps, "--quiet", "--output", out,
+        ];
+        if k > 0 {
             args.extend(["--resume", c]);
         }
-        let steps = if ranks == 2 { "1500" } else { "1000" };
-        args[3] = steps;
         let r = run(ranks, &args);
-        assert_eq!(r.code, 0, "{ranks} ranks: {}", r.stderr);
+        assert_eq!(r.code, 0, "{name}, part {k} on {ranks} ranks: {}", r.stderr);
     }
     assert!(
         bytes(&one.join("checkpoint.h5")) == bytes(&checkpoint),
-        "the checkpoint after 3,500 steps differs"
+        "{name}: the checkpoint after {total} steps differs"
     );
-    assert_eq!(
-        output_steps(&one.join("run.h5")),
-        output_steps(&split.join("run.h5")),
-        "the output steps differ"
+    // A resumed run begins with an output step of its start; the others
+    // are those of one process.
+    let whole = output_steps(&one.join("run.h5"));
+    let mut parts_steps = output_steps(&split.join("run.h5"));
+    parts_steps.retain(|s| whole.iter().any(|w| w[0] == s[0]));
+    assert_eq!(whole, parts_steps, "{name}: the output steps differ");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_run_resumed_on_other_rank_counts_goes_on_to_the_bit() {
+    // 1 rank, then 3, then 2: the checkpoints are plain data, not a rank's.
+    let hopper = scene("hopper.toml");
+    resumed_across_rank_counts("resume-hopper", &hopper, &[(1, 1000), (3, 1000), (2, 1500)]);
+    // The silo's grains reach the floor and each other by step 1,000, and
+    // its friction history moves with them between ranks.
+    let silo = scene("silo-1000.toml");
+    resumed_across_rank_counts(
+        "resume-silo",
+        &silo,
+        &[(2, 700), (3, 600), (1, 200), (4, 500)],
     );
+}
+
+/// A rank killed outright ends the whole run (no rank left waiting for
+/// it), and the last checkpoint goes on, on one process, to the bits of a
+/// run never interrupted.
+#[test]
+fn a_rank_killed_mid_run_ends_the_run_and_its_checkpoint_resumes() {
+    let dir = temp("kill");
+    let out = dir.join("out");
+    let silo = scene("silo-1000.toml");
+    let silo = silo.to_str().unwrap();
+    let every = "simulation.output_every=50";
+    let mut cmd = Command::new(launcher());
+    cmd.args(launch_args(2))
+        .args([tridem(), "run", silo, "--quiet", "--set", every])
+        .args(["--output", out.to_str().unwrap()])
+        .envs(open_mpi_local_env())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let child = cmd.spawn().unwrap();
+    let checkpoint = out.join("checkpoint.h5");
+    let start = Instant::now();
+    while !checkpoint.exists() && start.elapsed() < Duration::from_secs(120) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let pattern = format!("^{} run .*{}", tridem(), out.display());
+    let pids = Command::new("pgrep")
+        .args(["-f", &pattern])
+        .output()
+        .unwrap();
+    let pid = String::from_utf8_lossy(&pids.stdout)
+        .lines()
+        .last()
+        .expect("the ranks run")
+        .to_string();
+    assert!(Command::new("kill")
+        .args(["-KILL", &pid])
+        .status()
+        .unwrap()
+        .success());
+    let r = finish(child, Duration::from_secs(120));
+    assert_ne!(r.code, 0, "a run that lost a rank ended well");
+    let step = |c: &Path| -> u64 {
+        hdf5::File::open(c)
+            .and_then(|f| f.attr("step"))
+            .and_then(|a| a.read_scalar())
+            .unwrap()
+    };
+    let at = step(&checkpoint);
+    assert!(at > 0 && at % 50 == 0, "checkpoint at step {at}");
+    // Resumed to step `at` + 100, against one process run there at once.
+    let whole = dir.join("whole");
+    let to = (at + 100).to_string();
+    let set = ["--set", every];
+    let w = whole.to_str().unwrap();
+    let r = run(
+        1,
+        &[
+            &["run", silo, "--steps", &to, "--quiet", "--output", w][..],
+            &set,
+        ]
+        .concat(),
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let c = checkpoint.to_str().unwrap();
+    let o = out.to_str().unwrap();
+    let resume = [
+        "run", silo, "--steps", "100", "--quiet", "--output", o, "--resume", c,
+    ];
+    let r = run(1, &[&resume[..], &set].concat());
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert!(bytes(&whole.join("checkpoint.h5")) == bytes(&checkpoint));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A command line that does not parse is reported once, not once per rank.
+#[test]
+fn a_bad_command_line_is_reported_once() {
+    let r = run(3, &["run", "--no-such-option"]);
+    assert_eq!(r.code, 2, "{}", r.stderr);
+    let messages = r.stderr.matches("error:").count();
+    assert_eq!(messages, 1, "{}", r.stderr);
+}
+
+/// An output step that cannot be written (here: the file is /dev/full, a
+/// full disk) ends every rank with one message naming the file.
+#[test]
+fn a_full_disk_names_the_file() {
+    let dir = temp("full");
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    std::os::unix::fs::symlink("/dev/full", out.join("run.h5")).unwrap();
+    let silo = scene("silo-1000.toml");
+    let o = out.to_str().unwrap();
+    let args = [
+        "run",
+        silo.to_str().unwrap(),
+        "--steps",
+        "20",
+        "--quiet",
+        "--output",
+        o,
+    ];
+    let r = run(2, &[&args[..], &["--overwrite"]].concat());
+    assert_ne!(r.code, 0, "{}", r.stderr);
+    assert_one_error(&r);
+    assert!(r.stderr.contains("run.h5"), "{}", r.stderr);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

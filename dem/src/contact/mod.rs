@@ -166,8 +166,9 @@ pub struct Detector {
     /// half the skin, while `travel` stays within half the skin; split
     /// across ranks, in two shares (see [`Share`]), on one node all in the
     /// first.
-    lists: [Vec<(usize, usize)>; 2],
-    /// Whether `lists` hold a neighbour list that may be kept.
+    lists: [Vec<(usize, usize)>; 3],
+    /// Whether `lists` hold a neighbour list that may be kept (the third
+    /// list: pairs other ranks examine, see [`Detector::theirs`]).
     listed: bool,
     /// How far any point of any body may have moved since the list was built.
     travel: f64,
@@ -335,6 +336,18 @@ impl Detector {
         stats
     }
 
+    /// The body pairs of the last broad phase, split across ranks, of a
+    /// ghost and an owned particle of higher id: the ghost's owner examines
+    /// them (as bodies of this rank's world; on one node, none).
+    pub fn theirs(&self) -> &[(usize, usize)] {
+        &self.lists[2]
+    }
+
+    /// The body pairs of one share of the last broad phase (as bodies).
+    pub fn share(&self, share: Share) -> &[(usize, usize)] {
+        &self.lists[share as usize]
+    }
+
     /// Examines one share of the pairs [`Self::prepare`] found (on one node,
     /// [`Share::Local`] holds them all), appending their contacts to
     /// `contacts` in pair order. With `progress`, the work is done in
@@ -490,12 +503,14 @@ fn broad_phase<'b>(
 }
 
 /// Splits the broad phase's `pairs` (of `groups`, one per body) into the
-/// shares of [`Detector::prepare`]: all in the first without `roles`.
+/// shares of [`Detector::prepare`] (all in the first without `roles`), and
+/// the pairs of a ghost and an owned particle of higher id, which the
+/// ghost's owner examines (the third list).
 fn split_pairs(
     pairs: &[(usize, usize)],
     groups: &[BodyGroup],
     roles: &[Role],
-    lists: &mut [Vec<(usize, usize)>; 2],
+    lists: &mut [Vec<(usize, usize)>; 3],
 ) {
     lists.iter_mut().for_each(Vec::clear);
     if roles.is_empty() {
@@ -506,6 +521,8 @@ fn split_pairs(
         let (a, b) = (groups[g].body as usize, groups[h].body as usize);
         if let Some(share) = share_of(roles[a], roles[b]) {
             lists[share as usize].push((g, h));
+        } else if (roles[a], roles[b]) == (Role::Ghost, Role::Own) {
+            lists[2].push((g, h));
         }
     }
 }
