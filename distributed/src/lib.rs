@@ -17,7 +17,9 @@ pub mod local;
 pub mod metrics;
 pub mod records;
 mod simulation;
+pub mod weights;
 
 pub use ghosts::Exchange;
 pub use metrics::StepMetrics;
 pub use simulation::{merge_by_pair, DistributedSimulation, Settings, Start};
+pub use weights::Weights;

@@ -27,6 +27,9 @@ pub struct Entry {
     /// needs them; zero for ghosts and obstacles).
     pub force: DVec3,
     pub torque: DVec3,
+    /// Its contacts' work since the last partitioning: body pairs and
+    /// triangle pairs examined with it as the home particle.
+    pub work: [f64; 2],
 }
 
 /// One rank's bodies (see the module doc).
@@ -42,6 +45,8 @@ pub struct Local {
     pub halos: Vec<f64>,
     /// The owned bodies, in increasing index (and id).
     pub owned: Vec<usize>,
+    /// Per body, its [`Entry::work`].
+    pub work: Vec<[f64; 2]>,
 }
 
 impl Local {
@@ -80,6 +85,8 @@ impl Local {
         self.owner.clear();
         self.halos.clear();
         self.owned.clear();
+        self.work.clear();
+        w.bodies.reserve_exact(order.len());
         let mut loads = Vec::with_capacity(order.len());
         for (i, e) in entries.enumerate() {
             let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
@@ -88,6 +95,7 @@ impl Local {
             self.roles.push(e.role);
             self.owner.push(e.owner);
             self.halos.push(halo);
+            self.work.push(e.work);
             if e.role == Role::Own {
                 self.owned.push(i);
             }
@@ -112,6 +120,7 @@ impl Local {
                 owner: self.owner[i],
                 force: loads.0.get(i).copied().unwrap_or_default(),
                 torque: loads.1.get(i).copied().unwrap_or_default(),
+                work: self.work[i],
             })
             .collect()
     }
@@ -164,6 +173,7 @@ mod tests {
             owner: if role == Role::Own { 0 } else { 1 },
             force: DVec3::splat(id as f64),
             torque: DVec3::ZERO,
+            work: [0.0; 2],
         }
     }
 

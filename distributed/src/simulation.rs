@@ -80,6 +80,8 @@ pub struct Settings {
     /// The skin of the neighbour list and of the ghost lists: both are drawn
     /// anew once some body may have moved half of it (0: every step).
     pub skin: f64,
+    /// What a particle weighs for the partitioner.
+    pub weights: crate::Weights,
 }
 
 /// Where a run starts: the scene's initial state, or a checkpoint of it.
@@ -128,6 +130,8 @@ pub struct DistributedSimulation<'c> {
     /// Counters summed over this rank's steps.
     pub totals: StepStats,
     found: [Vec<Contact>; 2],
+    /// Steps and busy seconds since the last partitioning (for the weights).
+    since_partition: (u64, f64),
 }
 
 fn fail<T>(why: impl Into<String>) -> Result<T, String> {
@@ -188,7 +192,11 @@ impl<'c> DistributedSimulation<'c> {
             features: world.shapes.iter().map(Features::of).collect(),
             shape_radius: shape_radii(world),
             kernel: scene.kernel,
-            detector: Detector::with_skin(settings.skin),
+            detector: {
+                let mut d = Detector::with_skin(settings.skin);
+                d.count_work();
+                d
+            },
             forces: Forces::default(),
             ctx: StepContext {
                 dt: scene.dt,
@@ -204,6 +212,7 @@ impl<'c> DistributedSimulation<'c> {
             metrics: StepMetrics::default(),
             totals: StepStats::default(),
             found: Default::default(),
+            since_partition: (0, 0.0),
             obstacles,
             local,
         };
@@ -353,6 +362,8 @@ impl<'c> DistributedSimulation<'c> {
         m.step_seconds = step_start.elapsed().as_secs_f64();
         m.busy_seconds =
             (m.step_seconds - m.reduce_seconds - m.wait_seconds - m.return_wait_seconds).max(0.0);
+        self.since_partition.0 += 1;
+        self.since_partition.1 += m.busy_seconds;
         Ok(global[1] > 0.0)
     }
 
@@ -467,6 +478,14 @@ impl<'c> DistributedSimulation<'c> {
             &mut far,
         );
         merge_by_pair(&near, &far, &mut self.ctx.contacts);
+        // What each particle's contacts cost here: its rank pays for the
+        // pairs it is the home particle of.
+        for (i, w) in self.detector.take_work().into_iter().enumerate() {
+            if self.local.roles[i] == Role::Own {
+                self.local.work[i][0] += w[0] as f64;
+                self.local.work[i][1] += w[1] as f64;
+            }
+        }
         self.found = [near, far];
         self.ctx.stats.detection = stats;
         self.metrics.body_pairs = stats.body_pairs;
@@ -560,6 +579,7 @@ impl<'c> DistributedSimulation<'c> {
                 owner: *r,
                 force: DVec3::ZERO,
                 torque: DVec3::ZERO,
+                work: [0.0; 2],
             }));
         }
         for (id, body, bounds) in &self.obstacles {
@@ -571,6 +591,7 @@ impl<'c> DistributedSimulation<'c> {
                     owner: -1,
                     force: DVec3::ZERO,
                     torque: DVec3::ZERO,
+                    work: [0.0; 2],
                 });
             }
         }
@@ -603,21 +624,31 @@ impl<'c> DistributedSimulation<'c> {
         let me = self.comm.rank();
         let l = &self.local;
         let pad = 0.5 * self.settings.skin;
+        let w = &l.world;
+        let triangles: Vec<f64> = l
+            .owned
+            .iter()
+            .map(|&i| w.shapes[w.bodies[i].shape].triangles.len() as f64)
+            .collect();
+        let work: Vec<[f64; 2]> = l.owned.iter().map(|&i| l.work[i]).collect();
+        let (steps, busy) = self.since_partition;
+        let weights = crate::weights::of(self.settings.weights, &triangles, &work, steps, busy);
         let items: Vec<Item> = l
             .owned
             .iter()
-            .map(|&i| {
-                let w = &l.world;
+            .zip(&weights)
+            .map(|(&i, &weight)| {
                 let b = ghosts::body_box(w, &self.shape_radius, i, l.halos[i] + pad);
                 Item {
                     id: u64::from(w.id(i)),
                     point: w.bodies[i].x.to_array(),
-                    weight: w.shapes[w.bodies[i].shape].triangles.len() as f64,
+                    weight,
                     bbox: Aabb::new(b.lo.to_array(), b.hi.to_array()),
                     payload_bytes: std::mem::size_of::<BodyRecord>() as u32,
                 }
             })
             .collect();
+        self.since_partition = (0, 0.0);
         let placed = self.part.partition(self.comm, &items);
         // Every rank learns whether any failed before any returns.
         let ok = i32::from(placed.is_ok());
@@ -651,6 +682,7 @@ impl<'c> DistributedSimulation<'c> {
                     owner: me,
                     force: force[i],
                     torque: torque[i],
+                    work: [0.0; 2],
                 });
             } else {
                 outbox[r as usize].push(BodyRecord::of(id, body, force[i], torque[i]));
@@ -669,6 +701,7 @@ impl<'c> DistributedSimulation<'c> {
             owner: me,
             force: DVec3::from_array(r.force),
             torque: DVec3::from_array(r.torque),
+            work: [0.0; 2],
         }));
         let owned = kept.len() as u64;
         let mut all = 0u64;
@@ -955,6 +988,7 @@ fn dealt(
             owner: me,
             force,
             torque,
+            work: [0.0; 2],
         });
     }
     (entries, obstacles)

@@ -50,6 +50,8 @@ fn main() {
             .effects
             .get::<dem::effects::ContactParams>()
             .map_or(0.0, |c| c.skin),
+        // The partitions follow the work: bodies change ranks as they pile up.
+        weights: distributed::Weights::Pairs,
     };
     let mut dist = DistributedSimulation::new(&comm, &mut scene.clone(), Start::Fresh, settings)
         .unwrap_or_else(|e| panic!("{e}"));

@@ -246,6 +246,11 @@ pub struct RunArgs {
     /// scene's, else nonblocking).
     #[arg(long, value_enum)]
     pub exchange: Option<distributed::Exchange>,
+    /// Under mpirun: what a particle weighs for the partitioner: its
+    /// triangles, its contacts' cost (pairs), or its share of its rank's
+    /// measured time (default: the scene's `[parallel]` weights, else pairs).
+    #[arg(long, value_enum)]
+    pub weights: Option<distributed::Weights>,
     /// Under mpirun: write per-rank metrics as JSON lines to FILE.
     #[arg(long)]
     pub metrics: Option<PathBuf>,

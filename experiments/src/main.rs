@@ -9,6 +9,7 @@ mod info;
 mod kernels;
 mod output;
 mod pairs_csv;
+mod parallel;
 mod partition_cmd;
 mod plot;
 mod run_cmd;

@@ -32,6 +32,9 @@ pub fn run(args: &RunArgs) -> CliResult {
     }
     refuse_resume_without_output(args)?;
     let scene = load_scene(args)?;
+    // Not used on one process, but a name no partitioner, exchange or
+    // weighing knows is an error wherever the scene runs.
+    crate::parallel::settings(args, &scene)?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build_global()

@@ -15,7 +15,7 @@ use dem::checkpoint::Checkpoint;
 use dem::frame::Frame;
 use dem::scene::Scene;
 use distributed::metrics::{imbalance, json_line};
-use distributed::{DistributedSimulation, Exchange, Settings, Start, StepMetrics};
+use distributed::{DistributedSimulation, Settings, Start, StepMetrics};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -59,31 +59,6 @@ fn on_every_rank(comm: &SimpleCommunicator, e: CliError) -> CliError {
     reported_by(comm, 0, Some(e), code)
 }
 
-/// The scene's `[parallel]` settings under the command line's.
-fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
-    let p = &scene.parallel;
-    let partitioner = match (args.partitioner, &p.partitioner) {
-        (Some(b), _) => b,
-        (None, Some(name)) => name.parse().map_err(CliError::input)?,
-        (None, None) => partition::Backend::ZoltanRcb,
-    };
-    let exchange = match (args.exchange, &p.exchange) {
-        (Some(x), _) => x,
-        (None, Some(name)) => name.parse().map_err(CliError::input)?,
-        (None, None) => Exchange::Nonblocking,
-    };
-    let every = args.repartition_every.or(p.repartition_every).unwrap_or(0);
-    Ok(Settings {
-        partitioner,
-        repartition_every: (every > 0).then_some(every),
-        exchange,
-        skin: scene
-            .effects
-            .get::<dem::effects::ContactParams>()
-            .map_or(0.0, |c| c.skin),
-    })
-}
-
 /// What rank 0 writes: output steps, checkpoints and metrics.
 struct Writer {
     /// Held while the run writes its directory.
@@ -112,7 +87,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             eprintln!("tridem: warning: {w}");
         }
     }
-    let settings = agree(comm, settings(args, &scene))?;
+    let settings = agree(comm, crate::parallel::settings(args, &scene))?;
     // Cores are shared by the ranks of a node: one thread each unless told.
     // The main thread is one of the pool's: a parallel section starts in
     // place instead of being handed to another thread and waited for (which
@@ -254,12 +229,13 @@ fn refuse_start(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
 /// What the run is (`told`: the scene), on one line of rank 0's standard error.
 fn announce(told: &str, settings: &Settings, ranks: i32, threads: usize) {
     eprintln!(
-        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}",
+        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}, weights {}",
         settings.partitioner.name(),
         settings.exchange.name(),
         settings
             .repartition_every
             .map_or("at the start only".into(), |k| format!("every {k} steps")),
+        settings.weights.name(),
     );
 }
 

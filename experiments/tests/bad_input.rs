@@ -93,6 +93,20 @@ fn impossible_or_non_finite_scenes_are_refused_naming_the_line_and_writing_nothi
             "[[particles]]",
             "GB",
         ),
+        (
+            "unknown-partitioner",
+            SIM,
+            particle("") + "\n[parallel]\npartitioner = \"zoltan-hfsc\"\n",
+            "[parallel]",
+            "zoltan-hsfc",
+        ),
+        (
+            "unknown-weights",
+            SIM,
+            particle("") + "\n[parallel]\nweights = \"pair\"\n",
+            "[parallel]",
+            "triangles, pairs, time",
+        ),
     ];
     for (name, sim, particles, on, cause) in cases {
         let mut text = particles.clone();

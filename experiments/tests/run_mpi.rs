@@ -152,6 +152,12 @@ fn the_hopper_on_any_split_is_one_process_to_the_bit() {
         }
     }
     splits.push((2, vec!["--exchange", "blocking"]));
+    // Weighed by triangles, by pairs (the default) and by measured time,
+    // which differs from run to run: the partition may, the bits may not.
+    for (ranks, weights) in [(2, "triangles"), (3, "time"), (4, "pairs")] {
+        let opts = vec!["--weights", weights, "--repartition-every", "50"];
+        splits.push((ranks, opts));
+    }
     same_as_one_process("hopper", &scene("hopper.toml"), "3000", 1000, &splits);
 }
 

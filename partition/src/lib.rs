@@ -118,9 +118,8 @@ impl std::str::FromStr for Backend {
             .into_iter()
             .find(|b| b.name() == s)
             .ok_or_else(|| {
-                format!(
-                    "unknown partitioner `{s}` (zoltan-rcb, zoltan-rib, zoltan-hsfc, metis, rcb)"
-                )
+                let names: Vec<&str> = Backend::ALL.iter().map(|b| b.name()).collect();
+                format!("unknown partitioner `{s}` ({})", names.join(", "))
             })
     }
 }

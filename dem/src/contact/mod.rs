@@ -167,6 +167,11 @@ pub struct Detector {
     /// across ranks, in two shares (see [`Share`]), on one node all in the
     /// first.
     lists: [Vec<(usize, usize)>; 3],
+    /// Per body: body pairs and triangle pairs examined with it as the first
+    /// body, since [`Detector::take_work`].
+    work: Vec<[u64; 2]>,
+    /// Whether [`Detector::count_work`] was asked for.
+    count_work: bool,
     /// Whether `lists` hold a neighbour list that may be kept (the third
     /// list: pairs other ranks examine, see [`Detector::theirs`]).
     listed: bool,
@@ -209,6 +214,9 @@ struct Task {
     stats: Vec<PenaltyStats>,
     /// Body pairs whose boxes overlapped.
     body_pairs: usize,
+    /// Per body pair examined: its first group, and the triangle pairs
+    /// that went to the kernel (see [`Detector::work`]).
+    work: Vec<(u32, u32)>,
     found: Vec<TriangleContact>,
     counts: Counts,
     scratch: FeatureScratch,
@@ -336,6 +344,21 @@ impl Detector {
         stats
     }
 
+    /// Counts, from now on, the work of each body pair examined for its
+    /// first body (see [`Detector::take_work`]).
+    pub fn count_work(&mut self) {
+        self.count_work = true;
+    }
+
+    /// Per body of the world last examined: the body pairs and triangle
+    /// pairs examined with it as the first body (split across ranks: the
+    /// pairs whose cost its rank pays) since the last call, which starts
+    /// the count anew. The cost of a body's contacts, for partitioning by
+    /// work.
+    pub fn take_work(&mut self) -> Vec<[u64; 2]> {
+        std::mem::take(&mut self.work)
+    }
+
     /// The body pairs of the last broad phase, split across ranks, of a
     /// ghost and an owned particle of higher id: the ghost's owner examines
     /// them (as bodies of this rank's world; on one node, none).
@@ -401,6 +424,17 @@ impl Detector {
                 contacts.extend_from_slice(&task.contacts);
                 stats.deep_contacts += task.deep;
                 stats.contacts += task.contacts.len() as u64;
+                if self.count_work {
+                    let groups = views[0].groups();
+                    for &(g, n) in &task.work {
+                        let body = groups[g as usize].body as usize;
+                        if self.work.len() <= body {
+                            self.work.resize(body + 1, [0; 2]);
+                        }
+                        self.work[body][0] += 1;
+                        self.work[body][1] += u64::from(n);
+                    }
+                }
             }
             if let Some(p) = progress.as_mut() {
                 p();
@@ -639,6 +673,7 @@ impl Task {
             ..
         } = *pass;
         self.body_pairs = 0;
+        self.work.clear();
         let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
         let prefetch = rayon::current_num_threads() > 1;
@@ -666,6 +701,8 @@ impl Task {
                 continue;
             }
             self.body_pairs += 1;
+            let before = pairs.as_slice().len();
+            self.work.push((g as u32, 0));
             let reach = halos[fa.group().body as usize] + halos[fb.group().body as usize];
             // The parts' triangles as locals, kept in registers across the
             // loops' stores; index i of the set is at i - start.
@@ -704,6 +741,10 @@ impl Task {
                         as usize;
                 }
                 between.extend(&self.hits[..found]);
+            }
+            let added = pairs.as_slice().len() - before;
+            if let Some(last) = self.work.last_mut() {
+                last.1 = added as u32;
             }
         }
         let n = pairs.as_slice().len();

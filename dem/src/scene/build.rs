@@ -27,10 +27,6 @@ use toml::Spanned;
 const MAX_ITERATIONS: usize = 255;
 pub const MAX_FINISH_ROUNDS: usize = 8;
 
-/// The partitioners and exchanges `[parallel]` may name.
-const PARTITIONERS: [&str; 5] = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
-const EXCHANGES: [&str; 2] = ["nonblocking", "blocking"];
-
 /// The bodies of a scene and, per body, the line that placed it.
 struct Bodies {
     world: World,
@@ -83,7 +79,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
     }
     let parallel = match spec.parallel {
         None => Parallel::default(),
-        Some(p) => parallel(ctx, p.span(), p.into_inner())?,
+        Some(p) => parallel(ctx, p.span(), p.into_inner()),
     };
     Ok(Scene {
         world: bodies.world,
@@ -495,24 +491,10 @@ fn stable_step(world: &World) -> f64 {
 }
 
 /// `[parallel]`: names the command line takes.
-fn parallel(ctx: &Ctx, span: Range<usize>, p: Parallel) -> Result<Parallel, SceneError> {
-    let known = |name: &Option<String>, list: &[&str]| {
-        name.as_ref().is_none_or(|n| list.contains(&n.as_str()))
-    };
-    for (key, value, list) in [
-        ("partitioner", &p.partitioner, &PARTITIONERS[..]),
-        ("exchange", &p.exchange, &EXCHANGES[..]),
-    ] {
-        if !known(value, list) {
-            return ctx.err(
-                span,
-                format!(
-                    "parallel.{key} `{}` is none of {}",
-                    value.clone().unwrap_or_default(),
-                    list.join(", ")
-                ),
-            );
-        }
+/// `[parallel]`, with its line (its names are checked where they are used).
+fn parallel(ctx: &Ctx, span: Range<usize>, p: Parallel) -> Parallel {
+    Parallel {
+        line: ctx.line_of(span.start),
+        ..p
     }
-    Ok(p)
 }

@@ -43,9 +43,10 @@
 //! # batch = 8, grain, iterations = 4, finish_rounds = 1, tolerance = 1e-13
 //!
 //! [parallel]             # under mpirun (the command line wins)
-//! partitioner = "zoltan-rcb"   # zoltan-rib, zoltan-hsfc, metis, rcb
+//! partitioner = "zoltan-rcb"   # `tridem partition --list` lists them
 //! repartition_every = 100      # steps (0: only at the start)
 //! exchange = "nonblocking"     # or "blocking"
+//! weights = "pairs"            # triangles, pairs or time (docs/distributed.md)
 //! ```
 
 mod build;
@@ -79,13 +80,20 @@ impl std::fmt::Display for SceneError {
     }
 }
 
-/// How a run under mpirun is split (`[parallel]`), names as the command line takes them.
+/// How a run under mpirun is split (`[parallel]`), names as the command
+/// line takes them. The names are read here and checked by the crates that
+/// own them (partitioners, exchanges, weights), each against its own list,
+/// with `line` to say where.
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Parallel {
     pub partitioner: Option<String>,
     pub repartition_every: Option<u64>,
     pub exchange: Option<String>,
+    pub weights: Option<String>,
+    /// The line of `[parallel]` in the scene file (0: none).
+    #[serde(skip)]
+    pub line: usize,
 }
 
 /// A parsed scene: the initial world and how to run it.

@@ -1,0 +1,156 @@
+//! What a particle weighs when the partitioner balances the ranks.
+//!
+//! - `triangles`: its triangle count (what it costs to hold).
+//! - `pairs`: what its contacts cost: the body pairs and triangle pairs
+//!   examined with it as the home particle over the last interval, per
+//!   step, plus what every body costs per step, in nanoseconds of this
+//!   machine ([`COST`]).
+//! - `time`: the rank's measured busy seconds over the last interval,
+//!   shared among its particles in proportion to their `pairs` weight: a
+//!   rank that runs slower per pair (its cache, its core) sheds particles.
+//!
+//! The first partitioning, with no interval behind it, weighs triangles.
+
+/// The cost model of `pairs`, in nanoseconds: per body and step (the kicks,
+/// the drift, moving its triangles, the broad phase), per body pair examined
+/// (culling its triangle pairs), per triangle pair (the kernel, the
+/// contacts). Fitted to the one-thread section times of the hopper and the
+/// 1,000-particle silo (3,000 steps each), it predicts the 400-particle
+/// hopper's narrow phase within 1% (docs/distributed.md, "Weights").
+pub struct Cost {
+    pub body_step: f64,
+    pub body_pair: f64,
+    pub triangle_pair: f64,
+}
+
+pub const COST: Cost = Cost {
+    body_step: 150.0,
+    body_pair: 492.0,
+    triangle_pair: 65.0,
+};
+
+/// How particles are weighed (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weights {
+    Triangles,
+    Pairs,
+    Time,
+}
+
+impl Weights {
+    /// Every choice, with its name: the one list the command line, the
+    /// scene's `[parallel] weights` and the studies read.
+    pub const ALL: [(Weights, &'static str); 3] = [
+        (Weights::Triangles, "triangles"),
+        (Weights::Pairs, "pairs"),
+        (Weights::Time, "time"),
+    ];
+
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(w, _)| *w == self)
+            .map(|(_, n)| *n)
+            .expect("every variant is listed")
+    }
+}
+
+impl std::str::FromStr for Weights {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Weights, String> {
+        match Self::ALL.iter().find(|(_, n)| *n == s) {
+            Some((w, _)) => Ok(*w),
+            None => {
+                let names: Vec<&str> = Self::ALL.iter().map(|(_, n)| *n).collect();
+                Err(format!("unknown weights `{s}` ({})", names.join(", ")))
+            }
+        }
+    }
+}
+
+#[cfg(feature = "clap")]
+impl clap::ValueEnum for Weights {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[Weights::Triangles, Weights::Pairs, Weights::Time]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()))
+    }
+}
+
+/// The cost (ns per step) of a particle's contacts: `work` body pairs and
+/// triangle pairs examined over `steps` steps, plus its own per-step cost.
+pub fn pair_cost(work: [f64; 2], steps: u64) -> f64 {
+    let per = |x: f64| x / steps.max(1) as f64;
+    COST.body_step + COST.body_pair * per(work[0]) + COST.triangle_pair * per(work[1])
+}
+
+/// Each particle's weight under `weights`: `triangles` its triangle count,
+/// `work` its contacts' counts over the last `steps` steps, `busy` the
+/// rank's busy seconds over them (`steps` 0: no interval yet, triangles).
+pub fn of(
+    weights: Weights,
+    triangles: &[f64],
+    work: &[[f64; 2]],
+    steps: u64,
+    busy: f64,
+) -> Vec<f64> {
+    if steps == 0 || weights == Weights::Triangles {
+        return triangles.to_vec();
+    }
+    let cost: Vec<f64> = work.iter().map(|&w| pair_cost(w, steps)).collect();
+    if weights == Weights::Pairs {
+        return cost;
+    }
+    let total: f64 = cost.iter().sum();
+    // Seconds per step, as nanoseconds, shared as the costs are.
+    let busy_ns = 1e9 * busy / steps as f64;
+    cost.iter()
+        .map(|c| {
+            if total > 0.0 {
+                busy_ns * c / total
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_read_back_and_unknown_ones_are_refused_with_the_list() {
+        for (w, n) in Weights::ALL {
+            assert_eq!(n.parse::<Weights>(), Ok(w));
+            assert_eq!(w.name(), n);
+        }
+        let why = "pair".parse::<Weights>().unwrap_err();
+        assert!(why.contains("triangles, pairs, time"), "{why}");
+    }
+
+    /// Pairs weigh what the cost model says; time shares the rank's busy
+    /// time in the same proportions; with no interval, triangles.
+    #[test]
+    fn weights_follow_the_cost_of_each_particles_contacts() {
+        let tri = [20.0, 20.0];
+        // Over 10 steps: no contacts, and 5 body pairs / 200 triangle pairs.
+        let work = [[0.0, 0.0], [50.0, 2000.0]];
+        let p = of(Weights::Pairs, &tri, &work, 10, 0.0);
+        assert_eq!(p[0], COST.body_step);
+        assert_eq!(
+            p[1],
+            COST.body_step + 5.0 * COST.body_pair + 200.0 * COST.triangle_pair
+        );
+        let t = of(Weights::Time, &tri, &work, 10, 1e-3);
+        assert!(
+            (t[0] + t[1] - 1e5).abs() < 1e-6,
+            "1 ms over 10 steps: 1e5 ns per step"
+        );
+        assert!((t[1] / t[0] - p[1] / p[0]).abs() < 1e-9);
+        assert_eq!(of(Weights::Pairs, &tri, &work, 0, 0.0), tri.to_vec());
+        assert_eq!(of(Weights::Triangles, &tri, &work, 10, 1.0), tri.to_vec());
+    }
+}
