@@ -62,22 +62,20 @@ impl Local {
         }
     }
 
-    /// Makes `entries` the bodies, in id order; returns each body's force
-    /// and torque, by its new index. Refused if an id comes twice.
-    pub fn set(&mut self, entries: Vec<Entry>) -> Result<Vec<(DVec3, DVec3)>, String> {
-        // Sorted by moving their ids, not the entries (hundreds of bytes each).
-        let mut order: Vec<(u32, usize)> = entries.iter().map(|e| e.id).zip(0..).collect();
-        order.sort_unstable();
-        if let Some(w) = order.windows(2).find(|w| w[0].0 == w[1].0) {
-            return Err(format!(
-                "body {} came to this rank twice (as {:?} and {:?})",
-                w[0].0, entries[w[0].1].role, entries[w[1].1].role
-            ));
+    /// Makes the bodies of `streams`, each in increasing id, this rank's, in
+    /// id order; returns each body's force and torque, by its new index.
+    /// Each body is moved once (a merge, not a sort of bodies hundreds of
+    /// bytes long). Refused if a stream is out of order or an id comes twice.
+    pub fn merge(&mut self, streams: Vec<Vec<Entry>>) -> Result<Vec<(DVec3, DVec3)>, String> {
+        for s in &streams {
+            if let Some(w) = s.windows(2).find(|w| w[0].id >= w[1].id) {
+                return Err(format!(
+                    "bodies {} and {} came to this rank out of order",
+                    w[0].id, w[1].id
+                ));
+            }
         }
-        let mut slots: Vec<Option<Entry>> = entries.into_iter().map(Some).collect();
-        let entries = order
-            .iter()
-            .map(|&(_, k)| slots[k].take().expect("each entry once"));
+        let total: usize = streams.iter().map(Vec::len).sum();
         let w = &mut self.world;
         w.bodies.clear();
         w.ids.clear();
@@ -86,9 +84,28 @@ impl Local {
         self.halos.clear();
         self.owned.clear();
         self.work.clear();
-        w.bodies.reserve_exact(order.len());
-        let mut loads = Vec::with_capacity(order.len());
-        for (i, e) in entries.enumerate() {
+        w.bodies.reserve_exact(total);
+        let mut loads = Vec::with_capacity(total);
+        let mut heads: Vec<_> = streams
+            .into_iter()
+            .map(|s| s.into_iter().peekable())
+            .collect();
+        loop {
+            let next = heads
+                .iter_mut()
+                .enumerate()
+                .filter_map(|(k, h)| h.peek().map(|e| (e.id, k)))
+                .min();
+            let Some((id, k)) = next else { break };
+            let e = heads[k].next().expect("peeked");
+            if w.ids.last() == Some(&id) {
+                let role = self.roles.last().expect("a body before");
+                return Err(format!(
+                    "body {id} came to this rank twice (as {role:?} and {:?})",
+                    e.role
+                ));
+            }
+            let i = w.bodies.len();
             let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
             w.ids.push(e.id);
             w.bodies.push(e.body);
@@ -104,25 +121,31 @@ impl Local {
         Ok(loads)
     }
 
-    /// The index of the body of id `id`, if this rank holds it.
-    pub fn index_of(&self, id: u32) -> Option<usize> {
-        self.world.ids.binary_search(&id).ok()
-    }
-
-    /// The owned bodies as entries, with their forces from `loads` (by index).
-    pub fn owned_entries(&self, loads: (&[DVec3], &[DVec3])) -> Vec<Entry> {
-        self.owned
-            .iter()
-            .map(|&i| Entry {
+    /// Takes this rank's own bodies out, as entries in id order with their
+    /// forces from `loads` (by index); the rest are dropped.
+    pub fn take_owned(&mut self, loads: (&[DVec3], &[DVec3])) -> Vec<Entry> {
+        let bodies = std::mem::take(&mut self.world.bodies);
+        let mut out = Vec::with_capacity(self.owned.len());
+        for (i, body) in bodies.into_iter().enumerate() {
+            if self.roles[i] != Role::Own {
+                continue;
+            }
+            out.push(Entry {
                 id: self.world.ids[i],
-                body: self.world.bodies[i].clone(),
+                body,
                 role: Role::Own,
                 owner: self.owner[i],
                 force: loads.0.get(i).copied().unwrap_or_default(),
                 torque: loads.1.get(i).copied().unwrap_or_default(),
                 work: self.work[i],
-            })
-            .collect()
+            });
+        }
+        out
+    }
+
+    /// The index of the body of id `id`, if this rank holds it.
+    pub fn index_of(&self, id: u32) -> Option<usize> {
+        self.world.ids.binary_search(&id).ok()
     }
 
     /// Triangles of the owned bodies.
@@ -198,14 +221,13 @@ mod tests {
     #[test]
     fn bodies_are_held_in_id_order() {
         let mut l = local();
-        let loads = l
-            .set(vec![
-                entry(9, Role::Ghost),
-                entry(2, Role::Own),
-                entry(40, Role::Obstacle),
-                entry(5, Role::Own),
-            ])
-            .unwrap();
+        let streams = vec![
+            vec![entry(2, Role::Own), entry(5, Role::Own)],
+            vec![entry(9, Role::Ghost)],
+            vec![],
+            vec![entry(40, Role::Obstacle)],
+        ];
+        let loads = l.merge(streams).unwrap();
         assert_eq!(l.world.ids, vec![2, 5, 9, 40]);
         assert_eq!(
             l.roles,
@@ -217,16 +239,22 @@ mod tests {
         assert_eq!(l.halos, vec![0.5; 4]);
         assert_eq!((l.index_of(9), l.index_of(3)), (Some(2), None));
         let (f, t): (Vec<DVec3>, Vec<DVec3>) = loads.into_iter().unzip();
-        let back: Vec<u32> = l.owned_entries((&f, &t)).iter().map(|e| e.id).collect();
-        assert_eq!(back, vec![2, 5]);
+        let back = l.take_owned((&f, &t));
+        let ids: Vec<u32> = back.iter().map(|e| e.id).collect();
+        assert_eq!(ids, vec![2, 5]);
+        assert_eq!(back[1].force, DVec3::splat(5.0));
     }
 
     #[test]
-    fn a_body_given_twice_is_refused() {
+    fn a_body_given_twice_or_out_of_order_is_refused() {
         let mut l = local();
         let why = l
-            .set(vec![entry(3, Role::Own), entry(3, Role::Ghost)])
+            .merge(vec![vec![entry(3, Role::Own)], vec![entry(3, Role::Ghost)]])
             .unwrap_err();
         assert!(why.contains("body 3"), "{why}");
+        let why = l
+            .merge(vec![vec![entry(4, Role::Own), entry(3, Role::Own)]])
+            .unwrap_err();
+        assert!(why.contains("out of order"), "{why}");
     }
 }

@@ -177,7 +177,7 @@ impl<'c> DistributedSimulation<'c> {
             .map_err(|e| e.to_string())?;
         let world = &scene.world;
         let mut local = Local::new(world.shapes.clone(), world.materials.clone());
-        let loads = local.set(entries)?;
+        let loads = local.merge(vec![entries])?;
         let mut s = DistributedSimulation {
             comm,
             part,
@@ -234,9 +234,10 @@ impl<'c> DistributedSimulation<'c> {
         self.comm.abort(70)
     }
 
-    /// Makes `entries` this rank's bodies, their forces as they carry.
-    fn take_in(&mut self, entries: Vec<Entry>) {
-        match self.local.set(entries) {
+    /// Makes the bodies of `streams` (each in increasing id) this rank's,
+    /// their forces as they carry.
+    fn take_in(&mut self, streams: Vec<Vec<Entry>>) {
+        match self.local.merge(streams) {
             Ok(loads) => self.set_loads(&loads),
             Err(why) => self.broken(&why),
         }
@@ -570,21 +571,31 @@ impl<'c> DistributedSimulation<'c> {
             &l.owned,
             pad,
         );
-        let mut entries = l.owned_entries((&[], &[]));
+        // Streams in increasing id: the own bodies, each neighbour's ghosts,
+        // the obstacles within reach.
+        let mut streams = vec![self.local.take_owned((&[], &[]))];
         for (r, records) in &drawn.arrived {
-            entries.extend(records.iter().map(|rec| Entry {
-                id: rec.id as u32,
-                body: rec.body(),
-                role: Role::Ghost,
-                owner: *r,
-                force: DVec3::ZERO,
-                torque: DVec3::ZERO,
-                work: [0.0; 2],
-            }));
+            streams.push(
+                records
+                    .iter()
+                    .map(|rec| Entry {
+                        id: rec.id as u32,
+                        body: rec.body(),
+                        role: Role::Ghost,
+                        owner: *r,
+                        force: DVec3::ZERO,
+                        torque: DVec3::ZERO,
+                        work: [0.0; 2],
+                    })
+                    .collect(),
+            );
         }
-        for (id, body, bounds) in &self.obstacles {
-            if !drawn.reach.is_empty() && drawn.reach.overlaps(bounds) {
-                entries.push(Entry {
+        let near = |b: &Bounds| !drawn.reach.is_empty() && drawn.reach.overlaps(b);
+        streams.push(
+            self.obstacles
+                .iter()
+                .filter(|o| near(&o.2))
+                .map(|(id, body, _)| Entry {
                     id: *id,
                     body: body.clone(),
                     role: Role::Obstacle,
@@ -592,10 +603,10 @@ impl<'c> DistributedSimulation<'c> {
                     force: DVec3::ZERO,
                     torque: DVec3::ZERO,
                     work: [0.0; 2],
-                });
-            }
-        }
-        self.take_in(entries);
+                })
+                .collect(),
+        );
+        self.take_in(streams);
         let local = &self.local;
         let index = |id: u32| local.index_of(id).expect("a body just taken in");
         let send = drawn
@@ -672,20 +683,13 @@ impl<'c> DistributedSimulation<'c> {
             .map(|(&i, &r)| (l.world.id(i), r))
             .collect();
         let (force, torque) = self.forces.all();
-        for (&i, &r) in l.owned.iter().zip(&new_owner) {
-            let (id, body) = (l.world.id(i), &l.world.bodies[i]);
+        let mine = self.local.take_owned((force, torque));
+        for (mut e, &r) in mine.into_iter().zip(&new_owner) {
+            e.work = [0.0; 2];
             if r == me {
-                kept.push(Entry {
-                    id,
-                    body: body.clone(),
-                    role: Role::Own,
-                    owner: me,
-                    force: force[i],
-                    torque: torque[i],
-                    work: [0.0; 2],
-                });
+                kept.push(e);
             } else {
-                outbox[r as usize].push(BodyRecord::of(id, body, force[i], torque[i]));
+                outbox[r as usize].push(BodyRecord::of(e.id, &e.body, e.force, e.torque));
             }
         }
         let sent: usize = outbox.iter().map(Vec::len).sum();
@@ -693,17 +697,28 @@ impl<'c> DistributedSimulation<'c> {
         self.metrics.migrated_bytes += (sent * std::mem::size_of::<BodyRecord>()) as u64;
         let counts: Vec<Count> = outbox.iter().map(|v| v.len() as Count).collect();
         let flat: Vec<BodyRecord> = outbox.into_iter().flatten().collect();
-        let (arrived, _) = all_to_all_v(self.comm, &flat, &counts);
-        kept.extend(arrived.iter().map(|r| Entry {
-            id: r.id as u32,
-            body: r.body(),
-            role: Role::Own,
-            owner: me,
-            force: DVec3::from_array(r.force),
-            torque: DVec3::from_array(r.torque),
-            work: [0.0; 2],
-        }));
-        let owned = kept.len() as u64;
+        let (arrived, arrived_counts) = all_to_all_v(self.comm, &flat, &counts);
+        // Each sender's bodies in increasing id: one stream per sender.
+        let mut streams = Vec::with_capacity(size + 1);
+        let mut rest = &arrived[..];
+        for &c in &arrived_counts {
+            let (head, tail) = rest.split_at(c as usize);
+            rest = tail;
+            streams.push(
+                head.iter()
+                    .map(|r| Entry {
+                        id: r.id as u32,
+                        body: r.body(),
+                        role: Role::Own,
+                        owner: me,
+                        force: DVec3::from_array(r.force),
+                        torque: DVec3::from_array(r.torque),
+                        work: [0.0; 2],
+                    })
+                    .collect::<Vec<_>>(),
+            );
+        }
+        let owned = (kept.len() + arrived.len()) as u64;
         let mut all = 0u64;
         self.comm
             .all_reduce_into(&owned, &mut all, SystemOperation::sum());
@@ -716,7 +731,8 @@ impl<'c> DistributedSimulation<'c> {
         if let Err(why) = self.migrate_history(&owner_of) {
             self.broken(&why);
         }
-        self.take_in(kept);
+        streams.push(kept);
+        self.take_in(streams);
         self.lists = GhostLists::default();
         self.logged = vec![false; self.local.world.bodies.len()];
         self.lists_stale = true;
