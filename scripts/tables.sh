@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Regenerates docs/tables.md: the current results table of each area
 # (distance kernels, the DEM on one node, the partitioners, the DEM across
-# ranks, and ranks against threads), each under the command that printed it, stamped with the CPU
-# model, the cores and the commit. About ten minutes on two cores.
+# ranks: ranks against threads, memory, and the projection to the paper's
+# run), each under the command that printed it, stamped with the CPU model,
+# the cores and the commit. About fifteen minutes on two cores.
 # Usage: scripts/tables.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -64,14 +65,26 @@ RCB (docs/distributed.md)." \
   "tridem run scenes/silo-1000.toml --steps 600 --quiet" \
   "mpirun -np 2 --oversubscribe tridem run scenes/silo-1000.toml --steps 600 --threads 1 --partitioner rcb --repartition-every 20 --quiet"
 {
-  echo "### Ranks or threads on one node"
+  echo "### Ranks or threads on one node, the exchange, memory per rank"
   echo
-  echo "The same cores as 1 rank x $cores threads and as $cores ranks x 1 thread, side by side"
-  echo "(docs/distributed.md, \"One node: ranks or threads\")."
+  echo "The same cores as 1 rank x $cores threads and as $cores ranks x 1 thread, side by side;"
+  echo "the two exchanges; peak memory per rank against the rank count"
+  echo "(docs/distributed.md, \"One node: ranks or threads\", \"Memory\")."
   echo
   scripts/distributed-table.sh 3 "$cores"
   echo
 } >> "$page"
 echo "Ranks or threads: done" >&2
+{
+  echo "### Projection to the paper's run"
+  echo
+  echo "Ghost counts at 2-64 ranks on every partitioner, and the paper's run (10,000 particles,"
+  echo "25 M triangles) projected to 64-1,024 ranks from inputs measured here"
+  echo "(docs/distributed.md, \"Projection\")."
+  echo
+  scripts/projection.sh 64
+  echo
+} >> "$page"
+echo "Projection: done" >&2
 mv "$page" docs/tables.md
 echo "docs/tables.md regenerated" >&2

@@ -56,6 +56,8 @@ step_metrics! {
         ghosts_received,
         ghost_bytes_sent,
         ghost_bytes_received,
+        /// Ranks this rank exchanges ghosts with.
+        neighbours,
         /// Force terms sent back to the owners of ghosts, and their bytes.
         terms_sent,
         term_bytes_sent,
@@ -118,7 +120,7 @@ impl StepMetrics {
     }
 
     /// Takes in the next step of an interval: its counts and seconds add
-    /// up; the sizes (owned and local bodies and triangles) are the step's,
+    /// up; the sizes (owned and local bodies and triangles, neighbours) are the step's,
     /// as is the step number.
     pub fn extend_interval(&mut self, o: &StepMetrics) {
         self.accumulate(o);
@@ -126,6 +128,7 @@ impl StepMetrics {
         self.owned_triangles = o.owned_triangles;
         self.local_bodies = o.local_bodies;
         self.local_triangles = o.local_triangles;
+        self.neighbours = o.neighbours;
         self.step = o.step;
     }
 }

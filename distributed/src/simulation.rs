@@ -360,7 +360,9 @@ impl<'c> DistributedSimulation<'c> {
         m.owned_triangles = self.local.owned_triangles();
         m.local_bodies = self.local.world.bodies.len() as u64;
         m.local_triangles = self.local.triangles();
-        m.step_seconds = step_start.elapsed().as_secs_f64();
+        m.neighbours = self.lists.send.len().max(self.lists.recv.len()) as u64;
+        // The first step also carries the start's sections (see above).
+        m.step_seconds = step_start.elapsed().as_secs_f64() + carried.sections();
         m.busy_seconds =
             (m.step_seconds - m.reduce_seconds - m.wait_seconds - m.return_wait_seconds).max(0.0);
         self.since_partition.0 += 1;

@@ -39,6 +39,12 @@ pub enum Command {
         tridem kernels --pairs 1e6 --threads 2 --schedule guided\n  \
         tridem kernels --accuracy --pairs 1e5 --output out/kernels")]
     Kernels(KernelsArgs),
+    /// Point-to-point latency and bandwidth between ranks 0 and 1 (run under
+    /// mpirun): the inputs of the communication model in docs/distributed.md.
+    #[command(after_help = "Examples:\n  \
+        mpirun -np 2 tridem pingpong\n  \
+        mpirun -np 2 tridem pingpong --json")]
+    Pingpong(PingpongArgs),
     /// Partition a synthetic workload with one partitioner (run under mpirun).
     #[command(after_help = "Examples:\n  \
         mpirun -np 4 tridem partition --partitioner zoltan-rcb --workload hopper --items 1e6 --steps 20\n  \
@@ -261,9 +267,13 @@ pub struct RunArgs {
 
 #[derive(Args, Debug)]
 pub struct PartitionArgs {
+    /// Print the partitioners' names, one per line, and nothing else (the
+    /// list scripts read).
+    #[arg(long, exclusive = true)]
+    pub list: bool,
     /// How items are assigned to ranks.
-    #[arg(long, value_enum)]
-    pub partitioner: partition::Backend,
+    #[arg(long, value_enum, required_unless_present = "list")]
+    pub partitioner: Option<partition::Backend>,
     /// Where the items are.
     #[arg(long, value_enum, default_value = "uniform")]
     pub workload: partition::workload::Workload,
@@ -292,6 +302,16 @@ pub struct PartitionArgs {
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
+    /// Print as one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct PingpongArgs {
+    /// Round trips per message size (the median is kept).
+    #[arg(long, default_value_t = 200, value_parser = bounds::every)]
+    pub repeat: u64,
     /// Print as one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,

@@ -11,6 +11,7 @@ mod output;
 mod pairs_csv;
 mod parallel;
 mod partition_cmd;
+mod pingpong;
 mod plot;
 mod run_cmd;
 mod run_mpi;
@@ -47,6 +48,7 @@ fn main() -> ExitCode {
         cli::Command::Distance(args) => distance_cmd::run(&args),
         cli::Command::Kernels(args) => kernels::run(&args),
         cli::Command::Partition(args) => partition_cmd::run(&args),
+        cli::Command::Pingpong(args) => pingpong::run(&args),
         cli::Command::Run(args) => run_cmd::run(&args),
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),

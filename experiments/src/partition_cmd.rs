@@ -14,6 +14,13 @@ use std::io::Write;
 use std::time::Instant;
 
 pub fn run(args: &PartitionArgs) -> CliResult {
+    if args.list {
+        partition::Backend::ALL
+            .iter()
+            .for_each(|b| println!("{}", b.name()));
+        return Ok(());
+    }
+    let partitioner = args.partitioner.expect("clap: required without --list");
     // An item's coordinates, id, weight and part in the partitioner's and
     // the exchange's buffers: about 200 B.
     crate::bounds::fits_in_memory(
@@ -38,8 +45,7 @@ pub fn run(args: &PartitionArgs) -> CliResult {
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
-    let mut part = args
-        .partitioner
+    let mut part = partitioner
         .create(&world, halo)
         .map_err(|e| CliError::runtime(e.to_string()))?;
 
@@ -48,7 +54,7 @@ pub fn run(args: &PartitionArgs) -> CliResult {
             create_output_dir(dir)?;
             Some(dir.join(format!(
                 "partition-{}-{}-{}ranks.csv",
-                args.partitioner.name(),
+                partitioner.name(),
                 workload_name(args),
                 size
             )))
@@ -63,7 +69,7 @@ pub fn run(args: &PartitionArgs) -> CliResult {
         )
     });
     if let Some(b) = &bar {
-        b.set_message(args.partitioner.name());
+        b.set_message(partitioner.name());
     }
 
     let mut local = spec.initial(me, size);
@@ -290,7 +296,7 @@ fn imbalance(world: &mpi::topology::SimpleCommunicator, local: &partition::Local
 fn print_header(size: i32, args: &PartitionArgs, halo: f64) {
     println!(
         "{} on {} ranks: {} items, workload {}, halo {halo:.3e}, {} steps, repartition every {}",
-        args.partitioner.name(),
+        args.partitioner.map_or("", |p| p.name()),
         size,
         args.items,
         workload_name(args),
