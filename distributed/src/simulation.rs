@@ -70,12 +70,19 @@ use partition::comm::{all_to_all_v, gather_v};
 use partition::{Aabb, Backend, Item, Partitioner};
 use std::time::Instant;
 
+/// Steps between the checks of `Settings::repartition_when` (each check
+/// is two small all-reduces).
+pub const CHECK_EVERY: u64 = 20;
+
 /// How a run is split.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
     pub partitioner: Backend,
     /// Repartition every this many steps (`None`: only at the start).
     pub repartition_every: Option<u64>,
+    /// Repartition once the ranks' busy time over the last
+    /// [`CHECK_EVERY`] steps is more imbalanced (max/mean) than this.
+    pub repartition_when: Option<f64>,
     pub exchange: Exchange,
     /// The skin of the neighbour list and of the ghost lists: both are drawn
     /// anew once some body may have moved half of it (0: every step).
@@ -132,6 +139,10 @@ pub struct DistributedSimulation<'c> {
     found: [Vec<Contact>; 2],
     /// Steps and busy seconds since the last partitioning (for the weights).
     since_partition: (u64, f64),
+    /// Busy seconds since the last imbalance check, and whether the last
+    /// check asked for a repartitioning.
+    since_check: f64,
+    imbalance_due: bool,
 }
 
 fn fail<T>(why: impl Into<String>) -> Result<T, String> {
@@ -213,6 +224,8 @@ impl<'c> DistributedSimulation<'c> {
             totals: StepStats::default(),
             found: Default::default(),
             since_partition: (0, 0.0),
+            since_check: 0.0,
+            imbalance_due: false,
             obstacles,
             local,
         };
@@ -312,7 +325,7 @@ impl<'c> DistributedSimulation<'c> {
             .settings
             .repartition_every
             .is_some_and(|k| k > 0 && self.steps_run > 1 && (self.steps_run - 1).is_multiple_of(k));
-        if due {
+        if due || std::mem::take(&mut self.imbalance_due) {
             self.repartition()?;
         }
         let start = Instant::now();
@@ -367,7 +380,29 @@ impl<'c> DistributedSimulation<'c> {
             (m.step_seconds - m.reduce_seconds - m.wait_seconds - m.return_wait_seconds).max(0.0);
         self.since_partition.0 += 1;
         self.since_partition.1 += m.busy_seconds;
+        self.since_check += m.busy_seconds;
+        if let Some(tau) = self.settings.repartition_when {
+            if self.steps_run.is_multiple_of(CHECK_EVERY) {
+                let busy = std::mem::take(&mut self.since_check);
+                self.imbalance_due = self.imbalance_over(busy) > tau;
+            }
+        }
         Ok(global[1] > 0.0)
+    }
+
+    /// The max/mean over ranks of `busy` (collective).
+    fn imbalance_over(&self, busy: f64) -> f64 {
+        let (mut max, mut sum) = (0.0, 0.0);
+        self.comm
+            .all_reduce_into(&busy, &mut max, SystemOperation::max());
+        self.comm
+            .all_reduce_into(&busy, &mut sum, SystemOperation::sum());
+        let mean = sum / f64::from(self.comm.size());
+        if mean > 0.0 {
+            max / mean
+        } else {
+            1.0
+        }
     }
 
     /// Owners: half kick and drift; returns the farthest any point of an

@@ -45,6 +45,7 @@ fn main() {
     let settings = Settings {
         partitioner: backend,
         repartition_every: Some(10),
+        repartition_when: None,
         exchange: Exchange::Nonblocking,
         skin: scene
             .effects

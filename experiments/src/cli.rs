@@ -127,9 +127,11 @@ impl StudyName {
 #[derive(Args, Debug)]
 pub struct StudyArgs {
     pub name: StudyName,
-    /// The scene every run steps.
-    #[arg(long, default_value = "scenes/silo-1000.toml")]
-    pub scene: PathBuf,
+    /// The scene every run steps (default: scenes/collapse.toml for
+    /// repartition-frequency and partitioners, where the ranks' work parts as
+    /// the column spreads; scenes/silo-1000.toml for the others).
+    #[arg(long)]
+    pub scene: Option<PathBuf>,
     /// Ranks (the exchange study runs each count; the other distributed
     /// studies the first; scheduling and accuracy run on one node).
     #[arg(long, value_delimiter = ',', default_value = "2", value_parser = bounds::ranks)]
@@ -138,7 +140,7 @@ pub struct StudyArgs {
     /// given (default 1 up to all cores).
     #[arg(long, value_delimiter = ',', value_parser = bounds::threads)]
     pub threads: Vec<usize>,
-    /// Steps per run (default 3000, in which the silo empties for 0.15 s;
+    /// Steps per run (default 3000: 0.15 s of the scene;
     /// accuracy: 500, before the trajectories of every setting have parted
     /// chaotically).
     #[arg(long, value_parser = bounds::steps)]
@@ -146,6 +148,14 @@ pub struct StudyArgs {
     /// The repartitioning intervals K of repartition-frequency (0: never).
     #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0", value_parser = bounds::steps)]
     pub every: Vec<u64>,
+    /// The imbalance thresholds τ of repartition-frequency's adaptive runs
+    /// (repartition once the busy time's max/mean over 20 steps exceeds τ).
+    #[arg(long, value_delimiter = ',', default_value = "1.1,1.3")]
+    pub when: Vec<f64>,
+    /// Runs of each setting, taken in turn (ABCABC...): the tables give
+    /// their median and least and most, the figures error bars.
+    #[arg(long, default_value_t = 5, value_parser = bounds::every)]
+    pub repeat: u64,
     /// Repartition every K steps in the other studies.
     #[arg(long, default_value_t = 20)]
     pub repartition_every: u64,
@@ -163,6 +173,15 @@ pub struct StudyArgs {
 impl StudyArgs {
     pub fn steps(&self) -> u64 {
         self.steps.unwrap_or(self.name.default_steps())
+    }
+
+    pub fn scene(&self) -> PathBuf {
+        self.scene.clone().unwrap_or_else(|| {
+            PathBuf::from(match self.name {
+                StudyName::RepartitionFrequency | StudyName::Partitioners => "scenes/collapse.toml",
+                _ => "scenes/silo-1000.toml",
+            })
+        })
     }
 }
 
@@ -252,6 +271,11 @@ pub struct RunArgs {
     /// scene's, else nonblocking).
     #[arg(long, value_enum)]
     pub exchange: Option<distributed::Exchange>,
+    /// Under mpirun: also repartition once the ranks' busy time over the
+    /// last 20 steps is more imbalanced (max/mean) than this (default: the
+    /// scene's `[parallel] repartition_when`, else never).
+    #[arg(long)]
+    pub repartition_when: Option<f64>,
     /// Under mpirun: what a particle weighs for the partitioner: its
     /// triangles, its contacts' cost (pairs), or its share of its rank's
     /// measured time (default: the scene's `[parallel]` weights, else pairs).

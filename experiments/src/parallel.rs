@@ -45,9 +45,16 @@ pub fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
         at("weights", n, e)
     })?;
     let every = args.repartition_every.or(p.repartition_every).unwrap_or(0);
+    let when = args.repartition_when.or(p.repartition_when);
+    if let Some(tau) = when.filter(|t| !(t.is_finite() && *t >= 1.0)) {
+        return Err(CliError::input(format!(
+            "repartition when the imbalance exceeds {tau}: an imbalance (max/mean) is 1 or more"
+        )));
+    }
     Ok(Settings {
         partitioner,
         repartition_every: (every > 0).then_some(every),
+        repartition_when: when,
         exchange,
         skin: scene
             .effects

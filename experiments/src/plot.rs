@@ -250,62 +250,192 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-/// Lines with markers, one per series, on linear axes (x log-scaled when
-/// `log_x`), with a legend; an empty plot says so rather than failing.
+/// How a figure's axes and marks look.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Look {
+    pub log_x: bool,
+    /// Where the y axis starts (`None`: at 0); imbalances start at 1.
+    pub y_from: Option<f64>,
+    /// A marker at every point (off for long series, where markers bury
+    /// the lines).
+    pub markers: bool,
+}
+
+/// Bounds of the points, padded: (x0, x1, y0, y1).
+fn extent<'a>(points: impl Iterator<Item = &'a (f64, f64)>, look: &Look) -> (f64, f64, f64, f64) {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for &(x, y) in points {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if !x0.is_finite() {
+        (x0, x1, y0, y1) = (1.0, 2.0, 0.0, 1.0);
+    }
+    if x1 <= x0 {
+        (x0, x1) = (x0 - 0.5, x1 + 0.5);
+    }
+    let y_from = look.y_from.unwrap_or(0.0).min(y0);
+    let span = (y1 - y_from).max(f64::EPSILON * y1.abs().max(1.0));
+    let pad = 0.05 * (x1 - x0);
+    let (x0, x1) = if look.log_x {
+        (x0 / 1.2, x1 * 1.2)
+    } else {
+        (x0 - pad, x1 + pad)
+    };
+    (x0, x1, y_from, y1 + 0.1 * span)
+}
+
+/// Whether every x is a whole number (then the ticks are too).
+fn whole(xs: impl Iterator<Item = f64>) -> bool {
+    xs.into_iter().all(|x| x.fract() == 0.0)
+}
+
+/// The legend, in its own column right of the plot (never over the data).
+fn legend<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, names: &[String]) -> Res
+where
+    DB::ErrorType: 'static,
+{
+    for (k, name) in names.iter().enumerate() {
+        let y = 60 + 22 * k as i32;
+        let c = Palette99::pick(k).to_rgba();
+        area.draw(&PathElement::new([(4, y), (24, y)], c.stroke_width(2)))?;
+        area.draw(&Circle::new((14, y), 3, c.filled()))?;
+        area.draw(&Text::new(name.clone(), (30, y - 7), ("sans-serif", 14)))?;
+    }
+    Ok(())
+}
+
+/// Lines of `series` (x, y), legend outside the data.
 pub fn lines(
     path: &Path,
     caption: &str,
     (xdesc, ydesc): (&str, &str),
     series: &[Series],
-    log_x: bool,
+    look: Look,
 ) -> Res {
-    let all = series.iter().flat_map(|s| s.points.iter());
-    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    for &(x, y) in all {
-        x0 = x0.min(x);
-        x1 = x1.max(x);
-        y1 = y1.max(y);
-    }
-    if !x0.is_finite() {
-        (x0, x1, y1) = (1.0, 2.0, 1.0);
-    }
-    if x1 <= x0 {
-        x1 = x0 + 1.0;
-    }
-    let y1 = if y1 > 0.0 { y1 * 1.1 } else { 1.0 };
-    svg_and_png!(path, (800, 500), |root: &DrawingArea<_, Shift>| -> Res {
-        let mut builder = ChartBuilder::on(root);
+    let (x0, x1, y0, y1) = extent(series.iter().flat_map(|s| s.points.iter()), &look);
+    let whole_x = whole(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let names: Vec<String> = series.iter().map(|s| s.name.clone()).collect();
+    svg_and_png!(path, (960, 500), |root: &DrawingArea<_, Shift>| -> Res {
+        let (plot, side) = root.split_horizontally(760);
+        legend(&side, &names)?;
+        let mut builder = ChartBuilder::on(&plot);
         builder
-            .caption(caption, ("sans-serif", 18))
+            .caption(caption, ("sans-serif", 17))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(70);
-        let colour = |k: usize| Palette99::pick(k).to_rgba();
         macro_rules! draw {
             ($chart:expr) => {{
                 let mut chart = $chart;
-                chart.configure_mesh().x_desc(xdesc).y_desc(ydesc).draw()?;
-                for (k, s) in series.iter().enumerate() {
-                    let c = colour(k);
-                    chart
-                        .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))?
-                        .label(s.name.clone())
-                        .legend(move |(x, y)| {
-                            PathElement::new([(x, y), (x + 18, y)], c.stroke_width(2))
-                        });
-                    chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
+                let mut mesh = chart.configure_mesh();
+                mesh.x_desc(xdesc).y_desc(ydesc);
+                let integer = |v: &f64| format!("{v:.0}");
+                if whole_x {
+                    mesh.x_label_formatter(&integer);
                 }
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .draw()?;
+                mesh.draw()?;
+                for (k, s) in series.iter().enumerate() {
+                    let c = Palette99::pick(k).to_rgba();
+                    chart.draw_series(LineSeries::new(
+                        s.points.iter().copied(),
+                        c.stroke_width(2),
+                    ))?;
+                    if look.markers {
+                        chart
+                            .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
+                    }
+                }
             }};
         }
-        if log_x {
-            draw!(builder.build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?);
+        if look.log_x {
+            draw!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?);
         } else {
-            draw!(builder.build_cartesian_2d(x0..x1, 0.0..y1)?);
+            draw!(builder.build_cartesian_2d(x0..x1, y0..y1)?);
+        }
+        Ok(())
+    })
+}
+
+/// A measured setting: its median over repeats and the least and most.
+#[derive(Debug, Clone, Copy)]
+pub struct Bar {
+    pub x: f64,
+    pub median: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// A named series of [`Bar`]s.
+pub struct BarSeries {
+    pub name: String,
+    pub bars: Vec<Bar>,
+}
+
+/// Medians with their min-max as error bars; the medians of a series of
+/// three or more settings joined by a line, fewer left as points (two
+/// points are no trend). Legend outside the data.
+pub fn bars(
+    path: &Path,
+    caption: &str,
+    (xdesc, ydesc): (&str, &str),
+    series: &[BarSeries],
+    look: Look,
+) -> Res {
+    let corners: Vec<(f64, f64)> = series
+        .iter()
+        .flat_map(|s| s.bars.iter().flat_map(|b| [(b.x, b.lo), (b.x, b.hi)]))
+        .collect();
+    let (x0, x1, y0, y1) = extent(corners.iter(), &look);
+    let whole_x = whole(corners.iter().map(|p| p.0));
+    let names: Vec<String> = series.iter().map(|s| s.name.clone()).collect();
+    svg_and_png!(path, (960, 500), |root: &DrawingArea<_, Shift>| -> Res {
+        let (plot, side) = root.split_horizontally(760);
+        legend(&side, &names)?;
+        let mut builder = ChartBuilder::on(&plot);
+        builder
+            .caption(caption, ("sans-serif", 17))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70);
+        macro_rules! draw {
+            ($chart:expr) => {{
+                let mut chart = $chart;
+                let mut mesh = chart.configure_mesh();
+                mesh.x_desc(xdesc).y_desc(ydesc);
+                let integer = |v: &f64| format!("{v:.0}");
+                if whole_x {
+                    mesh.x_label_formatter(&integer);
+                }
+                mesh.draw()?;
+                for (k, s) in series.iter().enumerate() {
+                    let c = Palette99::pick(k).to_rgba();
+                    if s.bars.len() >= 3 {
+                        let medians = s.bars.iter().map(|b| (b.x, b.median));
+                        chart.draw_series(LineSeries::new(medians, c.stroke_width(1)))?;
+                    }
+                    chart.draw_series(s.bars.iter().map(|b| {
+                        ErrorBar::new_vertical(b.x, b.lo, b.median, b.hi, c.filled(), 8)
+                    }))?;
+                    chart.draw_series(
+                        s.bars
+                            .iter()
+                            .map(|b| Circle::new((b.x, b.median), 4, c.filled())),
+                    )?;
+                }
+            }};
+        }
+        if look.log_x {
+            draw!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?);
+        } else {
+            draw!(builder.build_cartesian_2d(x0..x1, y0..y1)?);
         }
         Ok(())
     })

@@ -228,13 +228,22 @@ fn refuse_start(scene: &Scene, dist: &DistributedSimulation) -> CliResult {
 
 /// What the run is (`told`: the scene), on one line of rank 0's standard error.
 fn announce(told: &str, settings: &Settings, ranks: i32, threads: usize) {
+    let every = settings
+        .repartition_every
+        .map(|k| format!("every {k} steps"));
+    let when = settings
+        .repartition_when
+        .map(|t| format!("when the busy imbalance exceeds {t}"));
+    let repartition = match (every, when) {
+        (Some(e), Some(w)) => format!("{e} and {w}"),
+        (Some(x), None) | (None, Some(x)) => x,
+        (None, None) => "at the start only".into(),
+    };
     eprintln!(
-        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {}, weights {}",
+        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {repartition}, \
+         weights {}",
         settings.partitioner.name(),
         settings.exchange.name(),
-        settings
-            .repartition_every
-            .map_or("at the start only".into(), |k| format!("every {k} steps")),
         settings.weights.name(),
     );
 }

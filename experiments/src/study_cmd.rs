@@ -3,19 +3,27 @@
 //! starts its runs under mpirun (`$MPIRUN`, default `mpirun`, with
 //! `$MPIRUN_ARGS`, default `--oversubscribe`; `MPIRUN=srun` inside a SLURM
 //! allocation, with `--mpi=pmix` unless `$TRIDEM_SRUN_MPI` says), keeps every run's metrics
-//! (`DIR/runs/LABEL.jsonl`), writes one summary CSV and its figures (SVG),
-//! and prints a short table.
+//! (`DIR/runs/LABEL-rN.jsonl`), writes one summary CSV and its figures (SVG
+//! and PNG), and prints a short table.
+//!
+//! Every setting runs `--repeat` times, the settings taken in turn (ABCABC:
+//! a drift of the machine spreads over all of them); the tables give the
+//! median and the least and most, the figures error bars. Each timing study
+//! runs its first setting twice under two labels: the difference between the
+//! two is its *noise floor*, and a difference between settings inside it is
+//! reported as none.
 
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{create_output_dir, CliError, CliResult};
-use crate::plot::{lines, Series};
+use crate::plot::{bars, lines, Bar, BarSeries, Look, Series};
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// One run of a study.
+/// One setting of a study.
+#[derive(Debug, Clone)]
 pub(crate) struct Spec {
     pub label: String,
     /// 1: a run on one node, started directly (no launcher).
@@ -34,6 +42,74 @@ pub(crate) struct Ran {
     pub summary: Value,
     /// Its metrics lines (distributed runs).
     pub lines: Vec<Value>,
+}
+
+/// A setting's runs.
+pub(crate) struct Group {
+    pub spec: Spec,
+    pub runs: Vec<Ran>,
+}
+
+/// The median of a setting's runs, with the least and the most.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Stat {
+    pub median: f64,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Stat {
+    pub fn of(mut v: Vec<f64>) -> Stat {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        let median = match n {
+            0 => 0.0,
+            _ if n % 2 == 1 => v[n / 2],
+            _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+        };
+        Stat {
+            median,
+            lo: v.first().copied().unwrap_or(0.0),
+            hi: v.last().copied().unwrap_or(0.0),
+        }
+    }
+
+    pub fn bar(&self, x: f64, scale: f64) -> Bar {
+        Bar {
+            x,
+            median: scale * self.median,
+            lo: scale * self.lo,
+            hi: scale * self.hi,
+        }
+    }
+}
+
+impl Group {
+    pub fn stat(&self, value: impl Fn(&Ran) -> f64) -> Stat {
+        Stat::of(self.runs.iter().map(value).collect())
+    }
+}
+
+/// The label of the setting that repeats the first one, for the noise floor.
+pub(crate) fn again(label: &str) -> String {
+    format!("{label}-again")
+}
+
+/// The noise floor of a timing study: how far apart two groups of the same
+/// setting measured (the relative difference of their medians), at least
+/// half the relative spread of either.
+pub(crate) fn noise_floor(groups: &[Group], value: impl Fn(&Ran) -> f64) -> Option<f64> {
+    let first = groups.first()?;
+    let twin = groups
+        .iter()
+        .find(|g| g.spec.label == again(&first.spec.label))?;
+    let (a, b) = (first.stat(&value), twin.stat(&value));
+    let rel = |s: &Stat| (s.hi - s.lo) / (2.0 * s.median);
+    Some(
+        ((a.median - b.median).abs() / a.median)
+            .max(rel(&a))
+            .max(rel(&b)),
+    )
 }
 
 /// The summary CSV's columns after the run's label, ranks and setting:
@@ -73,44 +149,70 @@ pub fn run(args: &StudyArgs) -> CliResult {
             dir.display()
         )));
     }
-    if !args.scene.exists() {
+    let scene = args.scene();
+    if !scene.exists() {
         return Err(CliError::input(format!(
             "{}: no such scene",
-            args.scene.display()
+            scene.display()
         )));
     }
-    let specs = if args.name.distributed() {
+    let mut specs = if args.name.distributed() {
         specs(args)
     } else {
         crate::study_node::specs(args)?
     };
+    if args.name != StudyName::Accuracy {
+        // The first setting again, under another label: the noise floor.
+        let mut twin = specs[0].clone();
+        twin.label = again(&twin.label);
+        twin.series = "noise floor".into();
+        specs.push(twin);
+    }
     create_output_dir(&dir.join("runs"))?;
-    let mut ran = Vec::new();
-    for (k, spec) in specs.into_iter().enumerate() {
-        let start = Instant::now();
-        let r = run_one(args, &dir, spec)?;
-        eprintln!(
-            "[{}] {:<24} {:>7.2} s",
-            k + 1,
-            r.spec.label,
-            start.elapsed().as_secs_f64()
-        );
-        ran.push(r);
+    let mut groups: Vec<Group> = specs
+        .iter()
+        .map(|s| Group {
+            spec: s.clone(),
+            runs: Vec::new(),
+        })
+        .collect();
+    let total = args.repeat as usize * specs.len();
+    for rep in 0..args.repeat as usize {
+        for (k, spec) in specs.iter().enumerate() {
+            let start = Instant::now();
+            let r = run_one(args, &dir, spec.clone(), rep)?;
+            eprintln!(
+                "[{}/{total}] {:<24} {:>7.2} s",
+                rep * specs.len() + k + 1,
+                r.spec.label,
+                start.elapsed().as_secs_f64()
+            );
+            groups[k].runs.push(r);
+        }
     }
     if !args.name.distributed() {
-        return crate::study_node::report(args, &dir, &ran);
+        return crate::study_node::report(args, &dir, &groups);
     }
-    let csv = summary_csv(&ran);
-    write(&dir.join("summary.csv"), &csv)?;
-    figures(args, &dir, &ran)?;
-    print!("{}", table(&ran));
+    write(&dir.join("summary.csv"), &summary_csv(&groups))?;
+    figures(args, &dir, &groups)?;
+    print!("{}", table(&groups));
+    if let Some(floor) = noise_floor(&groups, seconds_per_step) {
+        println!(
+            "noise floor: {:.1}% of the time per step (the same setting under two labels)",
+            100.0 * floor
+        );
+    }
     if args.name == StudyName::RepartitionFrequency {
-        let model = cost_model(&ran);
+        let model = cost_model(args, &groups);
         write(&dir.join("model.csv"), &model.csv)?;
         println!("{}", model.verdict);
     }
     println!("data and figures in {}", dir.display());
     Ok(())
+}
+
+pub(crate) fn seconds_per_step(r: &Ran) -> f64 {
+    r.summary["seconds_per_step"].as_f64().unwrap_or(0.0)
 }
 
 pub(crate) fn write(path: &Path, text: &str) -> CliResult {
@@ -140,11 +242,25 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
                 } else {
                     k as f64
                 },
-                series: "K".into(),
+                series: "every K steps".into(),
             })
+            .chain(args.when.iter().map(|&tau| Spec {
+                label: format!("when-{tau}"),
+                ranks,
+                threads,
+                args: s(&[
+                    "--repartition-every",
+                    "0",
+                    "--repartition-when",
+                    &tau.to_string(),
+                ]),
+                x: tau,
+                series: "when imbalanced".into(),
+            }))
             .collect(),
-        StudyName::Partitioners => ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"]
+        StudyName::Partitioners => partition::Backend::ALL
             .iter()
+            .map(|b| b.name())
             .enumerate()
             .map(|(i, p)| Spec {
                 label: p.to_string(),
@@ -186,14 +302,17 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
 /// Runs one run of a study (under the launcher when distributed, with
 /// metrics; on one node directly, keeping its output for its final state)
 /// and reads its summary and metrics.
-fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
-    let metrics = dir.join("runs").join(format!("{}.jsonl", spec.label));
+fn run_one(args: &StudyArgs, dir: &Path, spec: Spec, rep: usize) -> CliResult<Ran> {
+    let metrics = dir
+        .join("runs")
+        .join(format!("{}-r{rep}.jsonl", spec.label));
+    let scene = args.scene();
     let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
     let launcher = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
     let mut command = if spec.ranks == 1 {
         let mut c = Command::new(&exe);
         c.arg("run")
-            .arg(&args.scene)
+            .arg(&scene)
             .arg("--output")
             .arg(dir.join("runs").join(&spec.label));
         c
@@ -215,7 +334,7 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
             .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])
             .arg(&exe)
             .arg("run")
-            .arg(&args.scene)
+            .arg(&scene)
             .args(["--metrics-every", &args.metrics_every.to_string()])
             .arg("--metrics")
             .arg(&metrics);
@@ -264,6 +383,7 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec) -> CliResult<Ran> {
     })
 }
 
+/// A per-step metric's mean over ranks in a run's summary.
 fn mean(r: &Ran, field: &str) -> f64 {
     r.summary["per_step_over_ranks"][field]["mean"]
         .as_f64()
@@ -276,38 +396,62 @@ fn mean_of_lines(r: &Ran, field: &str) -> f64 {
     v.iter().sum::<f64>() / v.len().max(1) as f64
 }
 
-/// The mean imbalance of the ranks' work (busy seconds): what a rank that
-/// keeps its particles between repartitionings drifts into, while their
-/// count stays what the partitioner gave.
-fn mean_imbalance(r: &Ran) -> f64 {
+/// The mean imbalance of the ranks' busy seconds over the run's intervals:
+/// what a rank that keeps its particles between repartitionings drifts
+/// into (the imbalance of the whole run's sums would let intervals where
+/// different ranks are busier cancel).
+fn busy_imbalance(r: &Ran) -> f64 {
     mean_of_lines(r, "busy_imbalance")
 }
 
-fn summary_csv(ran: &[Ran]) -> String {
+/// The settings of the "every K steps" series, with their K (never: 0).
+fn k_of(g: &Group) -> Option<u64> {
+    let a = &g.spec.args;
+    let k = a.iter().position(|x| x == "--repartition-every")?;
+    if a.iter().any(|x| x == "--repartition-when") {
+        return None;
+    }
+    a.get(k + 1)?.parse().ok()
+}
+
+fn summary_csv(groups: &[Group]) -> String {
     let mut s = String::from(
-        "label,ranks,setting,seconds_per_step,triangle_imbalance_mean,busy_imbalance_mean,max_wait_seconds",
+        "label,series,ranks,setting,repeats,seconds_per_step_median,seconds_per_step_min,\
+         seconds_per_step_max,busy_imbalance_median,busy_imbalance_min,busy_imbalance_max,\
+         triangle_imbalance_median,max_wait_seconds_median",
     );
     for m in MEANS {
-        write!(s, ",{m}").expect("string");
+        write!(s, ",{m}_median").expect("string");
     }
     s.push('\n');
-    for r in ran {
-        write!(
-            s,
-            "{},{},{},{:e},{},{},{:e}",
-            r.spec.label,
-            r.spec.ranks,
-            r.spec.x,
-            r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
-            mean_of_lines(r, "triangle_imbalance"),
-            mean_imbalance(r),
+    for g in groups {
+        let t = g.stat(seconds_per_step);
+        let b = g.stat(busy_imbalance);
+        let wait = g.stat(|r| {
             r.summary["per_step_over_ranks"]["wait_seconds"]["max"]
                 .as_f64()
-                .unwrap_or(0.0),
+                .unwrap_or(0.0)
+        });
+        write!(
+            s,
+            "{},{},{},{},{},{:e},{:e},{:e},{},{},{},{},{:e}",
+            g.spec.label,
+            g.spec.series,
+            g.spec.ranks,
+            g.spec.x,
+            g.runs.len(),
+            t.median,
+            t.lo,
+            t.hi,
+            b.median,
+            b.lo,
+            b.hi,
+            g.stat(|r| mean_of_lines(r, "triangle_imbalance")).median,
+            wait.median,
         )
         .expect("string");
         for m in MEANS {
-            write!(s, ",{:e}", mean(r, m)).expect("string");
+            write!(s, ",{:e}", g.stat(|r| mean(r, m)).median).expect("string");
         }
         s.push('\n');
     }
@@ -320,26 +464,41 @@ fn per_step(line: &Value, field: &str, every: u64) -> f64 {
     line["sum"][field].as_f64().unwrap_or(0.0) / ranks / every as f64
 }
 
-fn figures(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
+type PlotResult = Result<(), Box<dyn std::error::Error>>;
+
+fn figures(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResult {
     let scene = args
-        .scene
+        .scene()
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().into_owned());
     match args.name {
-        StudyName::RepartitionFrequency => repartition_figures(args, dir, ran, &scene),
-        StudyName::Partitioners => partitioner_figures(args, dir, ran, &scene),
-        StudyName::Exchange => exchange_figures(dir, ran, &scene),
+        StudyName::RepartitionFrequency => repartition_figures(args, dir, groups, &scene),
+        StudyName::Partitioners => partitioner_figures(args, dir, groups, &scene),
+        StudyName::Exchange => exchange_figures(args, dir, groups, &scene),
         StudyName::Scheduling | StudyName::Accuracy => unreachable!("runs on one node"),
     }
     .map_err(|e| CliError::runtime(format!("plot: {e}")))
 }
 
-type PlotResult = Result<(), Box<dyn std::error::Error>>;
+/// One bar series per setting, at x = its place among `groups` (the
+/// figure's ticks name them).
+fn per_setting(groups: &[Group], value: impl Fn(&Ran) -> f64, scale: f64) -> Vec<BarSeries> {
+    groups
+        .iter()
+        .enumerate()
+        .map(|(k, g)| BarSeries {
+            name: g.spec.label.clone(),
+            bars: vec![g.stat(&value).bar(k as f64, scale)],
+        })
+        .collect()
+}
 
-/// A metric of every run over the steps: imbalances as they are, other
-/// fields per step and times `scale`.
-fn over_steps(ran: &[Ran], field: &str, scale: f64, metrics_every: u64) -> Vec<Series> {
-    ran.iter()
+/// A metric over the steps of each setting's first run: imbalances as they
+/// are, other fields per step and times `scale`.
+fn over_steps(groups: &[Group], field: &str, scale: f64, metrics_every: u64) -> Vec<Series> {
+    groups
+        .iter()
+        .filter_map(|g| g.runs.first())
         .map(|r| Series {
             name: r.spec.label.clone(),
             points: r
@@ -358,8 +517,58 @@ fn over_steps(ran: &[Ran], field: &str, scale: f64, metrics_every: u64) -> Vec<S
         .collect()
 }
 
-/// Time per step by section against K, and the busy imbalance over the run.
-fn repartition_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
+/// The figures every distributed timing study draws, one bar per setting:
+/// time per step, busy imbalance, particles migrated; and the busy
+/// imbalance over the steps.
+fn setting_figures(args: &StudyArgs, dir: &Path, groups: &[Group], what: &str) -> PlotResult {
+    let x = "setting (legend)";
+    bars(
+        &dir.join("step-time.svg"),
+        &format!(
+            "{what}: ms per step, median of {} runs, min-max",
+            args.repeat
+        ),
+        (x, "ms per step"),
+        &per_setting(groups, seconds_per_step, 1e3),
+        Look::default(),
+    )?;
+    bars(
+        &dir.join("busy-imbalance.svg"),
+        &format!("{what}: busy imbalance, mean over the run's intervals"),
+        (x, "busy imbalance (max/mean)"),
+        &per_setting(groups, busy_imbalance, 1.0),
+        Look {
+            y_from: Some(1.0),
+            ..Look::default()
+        },
+    )?;
+    bars(
+        &dir.join("migration.svg"),
+        &format!("{what}: particles migrated per step"),
+        (x, "particles migrated per step (sum over ranks)"),
+        &per_setting(groups, |r| mean(r, "migrated_bodies") * ranks(r), 1.0),
+        Look::default(),
+    )?;
+    lines(
+        &dir.join("imbalance.svg"),
+        &format!("{what}: busy imbalance over the run (first run of each setting)"),
+        ("step", "busy imbalance (max/mean)"),
+        &over_steps(groups, "busy_imbalance", 1.0, args.metrics_every),
+        Look {
+            y_from: Some(1.0),
+            ..Look::default()
+        },
+    )
+}
+
+fn ranks(r: &Ran) -> f64 {
+    r.summary["ranks"].as_f64().unwrap_or(1.0)
+}
+
+/// The setting figures, and time per step by section against K.
+fn repartition_figures(args: &StudyArgs, dir: &Path, groups: &[Group], scene: &str) -> PlotResult {
+    let what = format!("{scene}, {} ranks", args.ranks[0]);
+    setting_figures(args, dir, groups, &what)?;
     let sections = [
         (
             "partition + migration",
@@ -372,123 +581,112 @@ fn repartition_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -
         ),
         ("forces", &["force_seconds"]),
         ("integration", &["integration_seconds"]),
+        (
+            "waits for other ranks",
+            &["reduce_seconds", "return_wait_seconds"],
+        ),
     ];
-    let mut series: Vec<Series> = sections
+    let every: Vec<&Group> = groups
         .iter()
-        .map(|(name, fields)| Series {
+        .filter(|g| k_of(g).is_some() && g.spec.series != "noise floor")
+        .collect();
+    let series: Vec<BarSeries> = sections
+        .iter()
+        .map(|(name, fields)| BarSeries {
             name: name.to_string(),
-            points: ran
+            bars: every
                 .iter()
-                .map(|r| {
-                    (
-                        r.spec.x,
-                        1e3 * fields.iter().map(|f| mean(r, f)).sum::<f64>(),
-                    )
+                .map(|g| {
+                    g.stat(|r| fields.iter().map(|f| mean(r, f)).sum::<f64>())
+                        .bar(g.spec.x, 1e3)
                 })
                 .collect(),
         })
         .collect();
-    series.push(Series {
-        name: "step (total)".into(),
-        points: ran
-            .iter()
-            .map(|r| {
-                (
-                    r.spec.x,
-                    1e3 * r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
-                )
-            })
-            .collect(),
-    });
-    let caption = format!(
-        "{scene}, {} ranks: ms per step by section against K (never at K = {})",
-        args.ranks[0],
-        args.steps()
-    );
-    lines(
+    bars(
         &dir.join("sections.svg"),
-        &caption,
+        &format!(
+            "{what}: ms per step by section against K (never at K = {})",
+            args.steps()
+        ),
         ("repartition every K steps", "ms per step (mean over ranks)"),
         &series,
-        true,
-    )?;
-    let caption = format!("{scene}: imbalance of the ranks' busy time over the run");
-    imbalance_figure(args, dir, ran, &caption)
-}
-
-/// Each run's busy imbalance over its steps.
-fn imbalance_figure(args: &StudyArgs, dir: &Path, ran: &[Ran], caption: &str) -> PlotResult {
-    lines(
-        &dir.join("imbalance.svg"),
-        caption,
-        ("step", "busy imbalance (max/mean)"),
-        &over_steps(ran, "busy_imbalance", 1.0, args.metrics_every),
-        false,
+        Look {
+            log_x: true,
+            ..Look::default()
+        },
     )
 }
 
-/// The busy imbalance and the time per step of each partitioner over the run.
-fn partitioner_figures(args: &StudyArgs, dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
-    let caption = format!(
-        "{scene}, {} ranks, repartition every {}: imbalance of the ranks' busy time",
+fn partitioner_figures(args: &StudyArgs, dir: &Path, groups: &[Group], scene: &str) -> PlotResult {
+    let what = format!(
+        "{scene}, {} ranks, repartition every {}",
         args.ranks[0], args.repartition_every
     );
-    imbalance_figure(args, dir, ran, &caption)?;
-    let caption = format!("{scene}, {} ranks: ms per step over the run", args.ranks[0]);
-    lines(
-        &dir.join("step-time.svg"),
-        &caption,
-        ("step", "ms per step (mean over ranks)"),
-        &over_steps(ran, "step_seconds", 1e3, args.metrics_every),
-        false,
-    )
+    setting_figures(args, dir, groups, &what)
 }
 
 /// The wait for ghosts and the step time against the ranks, both exchanges.
-fn exchange_figures(dir: &Path, ran: &[Ran], scene: &str) -> PlotResult {
+fn exchange_figures(args: &StudyArgs, dir: &Path, groups: &[Group], scene: &str) -> PlotResult {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut series = Vec::new();
     for mode in ["blocking", "nonblocking"] {
         for (what, field) in [("wait", "wait_seconds"), ("step", "step_seconds")] {
-            series.push(Series {
+            series.push(BarSeries {
                 name: format!("{mode}: {what}"),
-                points: ran
+                bars: groups
                     .iter()
-                    .filter(|r| r.spec.series == mode)
-                    .map(|r| (r.spec.x, 1e3 * mean(r, field)))
+                    .filter(|g| g.spec.series == mode)
+                    .map(|g| g.stat(|r| mean(r, field)).bar(g.spec.x, 1e3))
                     .collect(),
             });
         }
     }
     let caption = format!(
-        "{scene}: ghost exchange wait per rank ({cores} cores: more ranks are oversubscribed)"
+        "{scene}: ghost exchange, median of {} runs ({cores} cores: more ranks are oversubscribed)",
+        args.repeat
     );
-    lines(
+    bars(
         &dir.join("exchange.svg"),
         &caption,
         ("ranks", "ms per step (mean over ranks)"),
         &series,
-        false,
+        Look::default(),
     )
 }
 
-fn table(ran: &[Ran]) -> String {
+fn table(groups: &[Group]) -> String {
     let mut s = format!(
-        "{:<24} {:>5} {:>10} {:>10} {:>10} {:>10} {:>9} {:>9}\n",
-        "run", "ranks", "ms/step", "part+mig", "wait", "detect", "imbal", "ghosts"
+        "{:<24} {:>5} {:>24} {:>10} {:>10} {:>10} {:>18} {:>9}\n",
+        "run",
+        "ranks",
+        "ms/step [min, max]",
+        "part+mig",
+        "wait",
+        "detect",
+        "busy imbalance",
+        "ghosts"
     );
-    for r in ran {
+    for g in groups {
+        let t = g.stat(seconds_per_step);
+        let b = g.stat(busy_imbalance);
         writeln!(
             s,
-            "{:<24} {:>5} {:>10.3} {:>10.4} {:>10.4} {:>10.3} {:>9.3} {:>9.0}",
-            r.spec.label,
-            r.spec.ranks,
-            1e3 * r.summary["seconds_per_step"].as_f64().unwrap_or(0.0),
-            1e3 * (mean(r, "partition_seconds") + mean(r, "migration_seconds")),
-            1e3 * mean(r, "wait_seconds"),
-            1e3 * (mean(r, "local_detection_seconds") + mean(r, "ghost_detection_seconds")),
-            mean_imbalance(r),
-            mean(r, "ghosts_received"),
+            "{:<24} {:>5} {:>8.3} [{:.3}, {:.3}] {:>10.4} {:>10.4} {:>10.3} {:>6.3} [{:.2}, {:.2}] {:>9.0}",
+            g.spec.label,
+            g.spec.ranks,
+            1e3 * t.median,
+            1e3 * t.lo,
+            1e3 * t.hi,
+            1e3 * g.stat(|r| mean(r, "partition_seconds") + mean(r, "migration_seconds")).median,
+            1e3 * g.stat(|r| mean(r, "wait_seconds")).median,
+            1e3 * g
+                .stat(|r| mean(r, "local_detection_seconds") + mean(r, "ghost_detection_seconds"))
+                .median,
+            b.median,
+            b.lo,
+            b.hi,
+            g.stat(|r| mean(r, "ghosts_received")).median,
         )
         .expect("string");
     }
@@ -500,70 +698,125 @@ struct Model {
     verdict: String,
 }
 
-/// The cost model t(K) = t0 + C/K + β (I(K) − 1): C, the measured seconds
-/// of one repartitioning (partition and migration), amortised over K steps;
-/// I(K), the measured mean imbalance of the ranks' busy time at that K, costing
-/// β seconds per step per unit of imbalance. t0 and β are fitted by least
-/// squares to the measured step times; the model's best K is compared with
-/// the measured best.
-fn cost_model(ran: &[Ran]) -> Model {
-    let k_of = |r: &Ran| r.spec.args[1].parse::<f64>().unwrap_or(0.0);
-    let repartitioning: Vec<f64> = ran
+/// A model of the time per step against the repartitioning interval K,
+/// fitted to the two extremes (every step, never) and asked about the
+/// settings between, which it was not fitted to:
+///
+///   t(K) = t0 + c/K + β r K/2
+///
+/// c: the measured cost of one repartitioning at K = the smallest K;
+/// t0 = t(smallest K) − c/K: a step with the ranks balanced; r: how fast
+/// the busy imbalance grows after a repartitioning, per step, from the
+/// never-repartitioned run (its mean imbalance over S steps, 1 + r S/2);
+/// β: what a unit of imbalance costs per step, from the same run. Every
+/// rate is fitted as non-negative. Its best K, √(2c/(β r)), is compared with
+/// the measured best: within the noise floor, or not.
+fn cost_model(args: &StudyArgs, groups: &[Group]) -> Model {
+    let every: Vec<&Group> = groups
         .iter()
-        .filter(|r| k_of(r) > 0.0)
-        .map(|r| (mean(r, "partition_seconds") + mean(r, "migration_seconds")) * k_of(r))
+        .filter(|g| k_of(g).is_some() && g.spec.series != "noise floor")
         .collect();
-    let c = repartitioning.iter().sum::<f64>() / repartitioning.len().max(1) as f64;
-    let inv = |r: &Ran| if k_of(r) > 0.0 { 1.0 / k_of(r) } else { 0.0 };
-    // y = t − C/K = t0 + β x, x = I − 1.
-    let pts: Vec<(f64, f64)> = ran
+    let first = every
         .iter()
-        .map(|r| {
-            let t = r.summary["seconds_per_step"].as_f64().unwrap_or(0.0);
-            (mean_imbalance(r) - 1.0, t - c * inv(r))
-        })
-        .collect();
-    let n = pts.len() as f64;
-    let (mx, my) = (
-        pts.iter().map(|p| p.0).sum::<f64>() / n,
-        pts.iter().map(|p| p.1).sum::<f64>() / n,
-    );
-    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-    let beta = if sxx > 0.0 { sxy / sxx } else { 0.0 };
-    let t0 = my - beta * mx;
+        .filter(|g| k_of(g) > Some(0))
+        .min_by_key(|g| k_of(g));
+    let never = every.iter().find(|g| k_of(g) == Some(0));
+    let (Some(first), Some(never)) = (first, never) else {
+        return Model {
+            csv: String::new(),
+            verdict: "cost model: needs a K > 0 and never (0) among --every".into(),
+        };
+    };
+    let k1 = k_of(first).unwrap_or(1) as f64;
+    let steps = args.steps() as f64;
+    let per_repartition = |g: &Group, k: f64| {
+        g.stat(|r| (mean(r, "partition_seconds") + mean(r, "migration_seconds")) * k)
+            .median
+    };
+    let c = per_repartition(first, k1).max(0.0);
+    let t0 = (first.stat(seconds_per_step).median - c / k1).max(0.0);
+    let i_never = never.stat(busy_imbalance).median;
+    let t_never = never.stat(seconds_per_step).median;
+    let r = (2.0 * (i_never - 1.0) / steps).max(0.0);
+    let beta = if i_never > 1.0 {
+        ((t_never - t0) / (i_never - 1.0)).max(0.0)
+    } else {
+        0.0
+    };
+    let predict = |k: f64| {
+        if k <= 0.0 || k >= steps {
+            t0 + beta * (i_never - 1.0)
+        } else {
+            t0 + c / k + beta * r * k / 2.0
+        }
+    };
+    let floor = noise_floor(groups, seconds_per_step).unwrap_or(0.0);
     let mut csv = String::from(
-        "label,K,measured_seconds_per_step,predicted_seconds_per_step,busy_imbalance_mean\n",
+        "label,K,measured_median,measured_min,measured_max,predicted,\
+         per_repartition_seconds,busy_imbalance_median,fitted_to\n",
     );
-    let mut best = (f64::INFINITY, String::new());
-    let mut measured_best = (f64::INFINITY, String::new());
-    for r in ran {
-        let t = r.summary["seconds_per_step"].as_f64().unwrap_or(0.0);
-        let p = t0 + c * inv(r) + beta * (mean_imbalance(r) - 1.0);
+    for g in &every {
+        let k = k_of(g).unwrap_or(0) as f64;
+        let t = g.stat(seconds_per_step);
+        let fitted = std::ptr::eq(*g, *first) || std::ptr::eq(*g, *never);
         writeln!(
             csv,
-            "{},{},{t:e},{p:e},{}",
-            r.spec.label,
-            k_of(r),
-            mean_imbalance(r)
+            "{},{k},{:e},{:e},{:e},{:e},{:e},{},{}",
+            g.spec.label,
+            t.median,
+            t.lo,
+            t.hi,
+            predict(k),
+            if k > 0.0 { per_repartition(g, k) } else { 0.0 },
+            g.stat(busy_imbalance).median,
+            fitted
         )
         .expect("string");
-        if p < best.0 {
-            best = (p, r.spec.label.clone());
-        }
-        if t < measured_best.0 {
-            measured_best = (t, r.spec.label.clone());
-        }
     }
+    let by = |f: &dyn Fn(&Group) -> f64| {
+        every
+            .iter()
+            .min_by(|a, b| f(a).total_cmp(&f(b)))
+            .copied()
+            .expect("settings")
+    };
+    let model_best = by(&|g| predict(k_of(g).unwrap_or(0) as f64));
+    let measured_best = by(&|g| g.stat(seconds_per_step).median);
+    let (tm, tb) = (
+        model_best.stat(seconds_per_step).median,
+        measured_best.stat(seconds_per_step).median,
+    );
+    let gap = (tm - tb) / tb;
+    let k_star = if beta * r > 0.0 {
+        format!("{:.0}", (2.0 * c / (beta * r)).sqrt())
+    } else {
+        "none (imbalance costs nothing measurable)".into()
+    };
     let verdict = format!(
-        "cost model: one repartitioning costs {:.3} ms, a unit of imbalance {:.3} ms per step (fitted), \
-         base {:.3} ms per step; the model recommends {}, the measured best is {}{}",
+        "cost model (fitted to {} and never, predicting the others): one repartitioning \
+         {:.3} ms, a balanced step {:.3} ms, imbalance growing {:.2e} per step, costing \
+         {:.3} ms per step per unit; its best K is {k_star}, among the settings {}; measured \
+         best {}. {}",
+        first.spec.label,
         1e3 * c,
-        1e3 * beta,
         1e3 * t0,
-        best.1,
-        measured_best.1,
-        if best.1 == measured_best.1 { " (they agree)" } else { " (they differ: see model.csv)" }
+        r,
+        1e3 * beta,
+        model_best.spec.label,
+        measured_best.spec.label,
+        if gap <= floor {
+            format!(
+                "The model's choice is within the noise floor ({:.1}%) of the measured best: it predicts.",
+                100.0 * floor
+            )
+        } else {
+            format!(
+                "The model's choice is {:.1}% slower than the measured best, beyond the noise floor \
+                 ({:.1}%): it does not predict the best setting.",
+                100.0 * gap,
+                100.0 * floor
+            )
+        }
     );
     Model { csv, verdict }
 }

@@ -6,8 +6,8 @@
 use crate::checkpoint_file;
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{CliError, CliResult};
-use crate::plot::{labelled_points, lines, Labelled, Series};
-use crate::study_cmd::{write, Ran, Spec};
+use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
+use crate::study_cmd::{noise_floor, write, Group, Ran, Spec, Stat};
 use dem::scene::Scene;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -53,7 +53,7 @@ pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
             specs
         }
         StudyName::Accuracy => {
-            let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+            let scene = Scene::load(&args.scene()).map_err(|e| CliError::input(e.to_string()))?;
             let threads = args.threads.first().copied().unwrap_or(1);
             accuracy_settings(scene.dt)
                 .into_iter()
@@ -141,10 +141,12 @@ fn accuracy_settings(dt: f64) -> Vec<(&'static str, Vec<String>)> {
     ]
 }
 
-/// What one run measured, against the study's reference run.
+/// What one setting measured, against the study's reference setting: its
+/// first run's state, all its runs' times.
 struct Row<'a> {
     ran: &'a Ran,
-    seconds_per_step: f64,
+    repeats: usize,
+    seconds_per_step: Stat,
     narrow_idle: f64,
     /// Root mean square and largest distance of the particles' final
     /// positions from the reference run's.
@@ -153,20 +155,29 @@ struct Row<'a> {
     identical: bool,
 }
 
+/// A run's time per step (stepping only).
+fn stepping(r: &Ran) -> f64 {
+    let s = &r.summary;
+    let steps = s["steps"].as_f64().unwrap_or(1.0).max(1.0);
+    s["stepping_seconds"].as_f64().unwrap_or(0.0) / steps
+}
+
 fn rows<'a>(
     args: &StudyArgs,
     dir: &Path,
-    ran: &'a [Ran],
-    reference: &dyn Fn(&Ran) -> &'a Ran,
+    groups: &'a [Group],
+    reference: &dyn Fn(&Group) -> &'a Group,
 ) -> CliResult<Vec<Row<'a>>> {
-    let scene = Scene::load(&args.scene).map_err(|e| CliError::input(e.to_string()))?;
+    let scene = Scene::load(&args.scene()).map_err(|e| CliError::input(e.to_string()))?;
     let moves: Vec<bool> = scene.world.bodies.iter().map(|b| !b.is_static()).collect();
     let state = |r: &Ran| {
         checkpoint_file::read(&dir.join("runs").join(&r.spec.label).join("checkpoint.h5"))
     };
-    ran.iter()
-        .map(|r| {
-            let (a, b) = (state(r)?, state(reference(r))?);
+    groups
+        .iter()
+        .map(|g| {
+            let r = &g.runs[0];
+            let (a, b) = (state(r)?, state(&reference(g).runs[0])?);
             let moving: Vec<f64> = a
                 .bodies
                 .iter()
@@ -177,7 +188,6 @@ fn rows<'a>(
                 .collect();
             let n = moving.len().max(1) as f64;
             let s = &r.summary;
-            let steps = s["steps"].as_f64().unwrap_or(1.0).max(1.0);
             let narrow = s["section_seconds"]["narrow_phase"].as_f64().unwrap_or(0.0);
             let busy = s["narrow_phase_busy_thread_seconds"]
                 .as_f64()
@@ -185,7 +195,8 @@ fn rows<'a>(
             let threads = s["threads"].as_f64().unwrap_or(1.0);
             Ok(Row {
                 ran: r,
-                seconds_per_step: s["stepping_seconds"].as_f64().unwrap_or(0.0) / steps,
+                repeats: g.runs.len(),
+                seconds_per_step: g.stat(stepping),
                 narrow_idle: if narrow > 0.0 {
                     1.0 - busy / (threads * narrow)
                 } else {
@@ -199,35 +210,36 @@ fn rows<'a>(
         .collect()
 }
 
-pub(crate) fn report(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
-    let first = &ran[0];
+pub(crate) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResult {
+    let first = &groups[0];
     let rows = match args.name {
         // Each schedule against one thread of the same fallback: are the
         // answers independent of the threads?
-        StudyName::Scheduling => rows(args, dir, ran, &|r: &Ran| {
-            let fallback = r.spec.series.split(", ").nth(1).unwrap_or("");
-            ran.iter()
+        StudyName::Scheduling => rows(args, dir, groups, &|g: &Group| {
+            let fallback = g.spec.series.split(", ").nth(1).unwrap_or("");
+            groups
+                .iter()
                 .find(|q| q.spec.series.ends_with(fallback))
                 .unwrap_or(first)
         })?,
-        _ => rows(args, dir, ran, &|_: &Ran| first)?,
+        _ => rows(args, dir, groups, &|_: &Group| first)?,
     };
     write(&dir.join("summary.csv"), &csv(&rows))?;
     let plot_err = |e: Box<dyn std::error::Error>| CliError::runtime(format!("plot: {e}"));
     let scene = args
-        .scene
+        .scene()
         .file_name()
         .map_or(String::new(), |n| n.to_string_lossy().into_owned());
     match args.name {
         StudyName::Scheduling => scheduling_figures(dir, &scene, &rows).map_err(plot_err)?,
         _ => {
-            let reference = rows[0].seconds_per_step;
+            let reference = rows[0].seconds_per_step.median;
             let points: Vec<Labelled> = rows
                 .iter()
                 .skip(1)
                 .map(|r| Labelled {
                     label: r.ran.spec.label.clone(),
-                    x: 1e3 * r.seconds_per_step,
+                    x: 1e3 * r.seconds_per_step.median,
                     y: r.rms,
                 })
                 .collect();
@@ -250,23 +262,33 @@ pub(crate) fn report(args: &StudyArgs, dir: &Path, ran: &[Ran]) -> CliResult {
         }
     }
     print!("{}", table(&rows));
+    if let Some(floor) = noise_floor(groups, stepping) {
+        println!(
+            "noise floor: {:.1}% of the time per step (the same setting under two labels)",
+            100.0 * floor
+        );
+    }
     println!("data and figures in {}", dir.display());
     Ok(())
 }
 
 fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
-        "label,threads,seconds_per_step,narrow_phase_idle_fraction,fallback_rate,\
+        "label,threads,repeats,seconds_per_step_median,seconds_per_step_min,seconds_per_step_max,\
+         narrow_phase_idle_fraction,fallback_rate,\
          task_fallback_least,task_fallback_most,contacts,rms_deviation_m,max_deviation_m,identical_to_reference\n",
     );
     for r in rows {
         let j = &r.ran.summary;
         writeln!(
             s,
-            "{},{},{:e},{},{},{},{},{},{:e},{:e},{}",
+            "{},{},{},{:e},{:e},{:e},{},{},{},{},{},{:e},{:e},{}",
             r.ran.spec.label,
             r.ran.spec.threads,
-            r.seconds_per_step,
+            r.repeats,
+            r.seconds_per_step.median,
+            r.seconds_per_step.lo,
+            r.seconds_per_step.hi,
             r.narrow_idle,
             j["fallback_rate"].as_f64().unwrap_or(0.0),
             j["task_fallback_rate"]["least"].as_f64().unwrap_or(0.0),
@@ -288,34 +310,48 @@ fn scheduling_figures(
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut names: Vec<&str> = rows.iter().map(|r| r.ran.spec.series.as_str()).collect();
     names.dedup();
-    let by = |value: &dyn Fn(&Row) -> f64| -> Vec<Series> {
+    // Medians (time: with the min-max of the repeats), as points: two
+    // thread counts are no trend to draw a line through.
+    let by = |value: &dyn Fn(&Row) -> Stat| -> Vec<BarSeries> {
         names
             .iter()
-            .map(|n| Series {
+            .map(|n| BarSeries {
                 name: n.to_string(),
-                points: rows
+                bars: rows
                     .iter()
                     .filter(|r| r.ran.spec.series == *n)
-                    .map(|r| (r.ran.spec.x, value(r)))
+                    .map(|r| value(r).bar(r.ran.spec.x, 1.0))
                     .collect(),
             })
             .collect()
     };
-    lines(
+    let one = |v: f64| Stat {
+        median: v,
+        lo: v,
+        hi: v,
+    };
+    bars(
         &dir.join("step-time.svg"),
-        &format!("{scene}: ms per step against threads"),
+        &format!("{scene}: ms per step against threads (median, min-max)"),
         ("threads", "ms per step"),
-        &by(&|r| 1e3 * r.seconds_per_step),
-        false,
+        &by(&|r| {
+            let s = r.seconds_per_step;
+            Stat {
+                median: 1e3 * s.median,
+                lo: 1e3 * s.lo,
+                hi: 1e3 * s.hi,
+            }
+        }),
+        Look::default(),
     )?;
-    lines(
+    bars(
         &dir.join("idle.svg"),
         &format!("{scene}: narrow phase, share of thread time spent idle"),
         ("threads", "idle / (threads x narrow-phase time)"),
-        &by(&|r| r.narrow_idle),
-        false,
+        &by(&|r| one(r.narrow_idle)),
+        Look::default(),
     )?;
-    lines(
+    bars(
         &dir.join("task-fallback.svg"),
         &format!("{scene}: fallback rate of the most minus the least falling-back task"),
         (
@@ -324,25 +360,34 @@ fn scheduling_figures(
         ),
         &by(&|r| {
             let t = &r.ran.summary["task_fallback_rate"];
-            t["most"].as_f64().unwrap_or(0.0) - t["least"].as_f64().unwrap_or(0.0)
+            one(t["most"].as_f64().unwrap_or(0.0) - t["least"].as_f64().unwrap_or(0.0))
         }),
-        false,
+        Look::default(),
     )?;
     Ok(())
 }
 
 fn table(rows: &[Row]) -> String {
     let mut s = format!(
-        "{:<26} {:>7} {:>9} {:>7} {:>9} {:>10} {:>10} {:>9}\n",
-        "run", "threads", "ms/step", "idle", "fallback", "rms dev m", "max dev m", "identical"
+        "{:<26} {:>7} {:>24} {:>7} {:>9} {:>10} {:>10} {:>9}\n",
+        "run",
+        "threads",
+        "ms/step [min, max]",
+        "idle",
+        "fallback",
+        "rms dev m",
+        "max dev m",
+        "identical"
     );
     for r in rows {
         writeln!(
             s,
-            "{:<26} {:>7} {:>9.3} {:>6.1}% {:>8.2}% {:>10.2e} {:>10.2e} {:>9}",
+            "{:<26} {:>7} {:>8.3} [{:.3}, {:.3}] {:>6.1}% {:>8.2}% {:>10.2e} {:>10.2e} {:>9}",
             r.ran.spec.label,
             r.ran.spec.threads,
-            1e3 * r.seconds_per_step,
+            1e3 * r.seconds_per_step.median,
+            1e3 * r.seconds_per_step.lo,
+            1e3 * r.seconds_per_step.hi,
             100.0 * r.narrow_idle,
             100.0 * r.ran.summary["fallback_rate"].as_f64().unwrap_or(0.0),
             r.rms,

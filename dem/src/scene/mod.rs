@@ -45,6 +45,7 @@
 //! [parallel]             # under mpirun (the command line wins)
 //! partitioner = "zoltan-rcb"   # `tridem partition --list` lists them
 //! repartition_every = 100      # steps (0: only at the start)
+//! # repartition_when = 1.2     # or when the busy time's max/mean exceeds this
 //! exchange = "nonblocking"     # or "blocking"
 //! weights = "pairs"            # triangles, pairs or time (docs/distributed.md)
 //! ```
@@ -89,6 +90,7 @@ impl std::fmt::Display for SceneError {
 pub struct Parallel {
     pub partitioner: Option<String>,
     pub repartition_every: Option<u64>,
+    pub repartition_when: Option<f64>,
     pub exchange: Option<String>,
     pub weights: Option<String>,
     /// The line of `[parallel]` in the scene file (0: none).
