@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every study at its default size and regenerates docs/results.md with
 # its figures (docs/figures/study-*), each with the command that made it,
-# the machine and the commit.
+# the machine and the commit; then docs/tables.md (scripts/tables.sh), so
+# that both pages are made at one commit by one command.
 # Usage: scripts/reproduce.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,7 +14,11 @@ page=docs/results.md.new
   echo "# Results"
   echo
   echo "Every figure below is made by \`scripts/reproduce.sh\`, which runs each study at its"
-  echo "default size (docs/distributed.md explains the runs and their metrics). Measured on $stamp."
+  echo "default size (docs/distributed.md explains the runs and their metrics) and regenerates"
+  echo "[tables.md](tables.md) with it. Measured on $stamp. Each setting runs five times, the"
+  echo "settings in turn; tables give the median [least, most], figures error bars. Each timing"
+  echo "study runs its first setting twice under two labels: their difference is its noise floor,"
+  echo "and the line \"found:\" under each table says which settings differ by more than it."
   echo
 } > "$page"
 study() {
@@ -36,17 +41,19 @@ study() {
   } >> "$page"
 }
 mkdir -p out
-study repartition-frequency "Repartitioning every K steps (never: at the start only) on the \
-1,000-particle silo: per-step time of each section against K, and the imbalance of the ranks' busy time \
-over the run (particles keep their rank between repartitionings, so their count stays balanced while their work does not). The cost model amortises one repartitioning over K steps and charges the measured \
-imbalance at a fitted rate; its recommendation is printed below the table with the measured best."
-study partitioners "The five partitioners on the same run, repartitioning every 20 steps: \
-imbalance of the ranks' busy time and time per step over the run. Partition and migration seconds, and \
-ghosts per rank, are in the table."
-study exchange "Blocking against non-blocking ghost exchange on 2, 3 and 4 ranks: the time \
-each rank waits for its ghosts after (non-blocking) or before (blocking) the detection among its \
-own bodies, and the step time. On a machine with fewer cores than ranks, ranks share cores \
-(oversubscribed) and the waits measure that sharing as much as the network." --ranks 2,3,4
+study repartition-frequency "Repartitioning every K steps (never: at the start only), and \
+when the ranks' busy time over 20 steps is imbalanced beyond τ, on the column collapse \
+(scenes/collapse.toml: a block of grains released against one wall, whose ranks' work parts as it \
+spreads): time per step, the busy imbalance and the particles migrated per setting; time by section \
+against K; the imbalance over the run. The cost model is fitted to the two extremes (every step, \
+never) and predicts the settings between; the line under the table says whether it picked the \
+measured best within the noise floor."
+study partitioners "The five partitioners on the column collapse, repartitioning every 20 steps: \
+time per step, busy imbalance and migration per partitioner, and the imbalance over the run."
+study exchange "Blocking against non-blocking ghost exchange on 2, 3 and 4 ranks of the \
+1,000-particle silo: the wait (the time inside the call that completes the exchange, the same \
+measure in both modes) and the step time. On a machine with fewer cores than ranks, ranks share \
+cores (oversubscribed) and the waits measure that sharing as much as the network." --ranks 2,3,4
 study scheduling "Static, dynamic and guided sharing of the body pairs among threads, with the \
 hybrid kernel falling back on whole batches (the published kernel) or on the failed pairs only, at 1 \
 to all cores: time per step, the share of the narrow phase's thread time spent idle, and the spread of \
@@ -57,6 +64,7 @@ study accuracy "Each kernel setting's time per step against the root mean square
 the particles' final positions from a brute-force run. The run brute-dt+1e-14 changes only the time \
 step, by 1e-14: its deviation is what rounding alone grows into over the run (granular flow is \
 chaotic), the floor under which a kernel's error cannot be told from chaos. Settings on the bottom \
-line give brute force's trajectories bit for bit."
+line give brute force's trajectories bit for bit." --repeat 3
 mv "$page" docs/results.md
 echo "docs/results.md regenerated" >&2
+scripts/tables.sh

@@ -201,6 +201,7 @@ pub fn run(args: &StudyArgs) -> CliResult {
             "noise floor: {:.1}% of the time per step (the same setting under two labels)",
             100.0 * floor
         );
+        println!("{}", finding(&groups, seconds_per_step, floor));
     }
     if args.name == StudyName::RepartitionFrequency {
         let model = cost_model(args, &groups);
@@ -209,6 +210,49 @@ pub fn run(args: &StudyArgs) -> CliResult {
     }
     println!("data and figures in {}", dir.display());
     Ok(())
+}
+
+/// What a timing study found, in a sentence: the fastest setting (by
+/// median), the settings within the noise floor of it (no difference), and
+/// how much slower the others are.
+pub(crate) fn finding(groups: &[Group], time: impl Fn(&Ran) -> f64, floor: f64) -> String {
+    let settings: Vec<(&Group, f64)> = groups
+        .iter()
+        .filter(|g| g.spec.series != "noise floor")
+        .map(|g| (g, g.stat(&time).median))
+        .collect();
+    let Some(&(best, t)) = settings.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+        return String::new();
+    };
+    let (mut same, mut slower) = (Vec::new(), Vec::new());
+    for &(g, u) in &settings {
+        if std::ptr::eq(g, best) {
+            continue;
+        }
+        let gap = (u - t) / t;
+        if gap <= floor {
+            same.push(g.spec.label.clone());
+        } else {
+            slower.push(format!("{} +{:.0}%", g.spec.label, 100.0 * gap));
+        }
+    }
+    let list = |v: &[String]| {
+        if v.is_empty() {
+            "none".into()
+        } else {
+            v.join(", ")
+        }
+    };
+    format!(
+        "found: fastest {} ({:.3} ms per step, median of {} runs); no difference beyond the \
+         noise floor ({:.1}%): {}; slower: {}",
+        best.spec.label,
+        1e3 * t,
+        best.runs.len(),
+        100.0 * floor,
+        list(&same),
+        list(&slower)
+    )
 }
 
 pub(crate) fn seconds_per_step(r: &Ran) -> f64 {
@@ -819,4 +863,64 @@ fn cost_model(args: &StudyArgs, groups: &[Group]) -> Model {
         }
     );
     Model { csv, verdict }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A setting whose runs took `times` milliseconds per step.
+    fn group(label: &str, series: &str, times: &[f64]) -> Group {
+        let spec = Spec {
+            label: label.into(),
+            ranks: 2,
+            threads: 1,
+            args: Vec::new(),
+            x: 0.0,
+            series: series.into(),
+        };
+        let runs = times
+            .iter()
+            .map(|&t| Ran {
+                spec: spec.clone(),
+                summary: serde_json::json!({ "seconds_per_step": 1e-3 * t }),
+                lines: Vec::new(),
+            })
+            .collect();
+        Group { spec, runs }
+    }
+
+    #[test]
+    fn the_floor_is_the_gap_between_twins_or_their_spread() {
+        // Medians 1.00 and 1.03 (3% apart); spreads 2% and 1% of the median.
+        let groups = [
+            group("a", "s", &[0.98, 1.0, 1.02]),
+            group("b", "s", &[2.0, 2.0, 2.0]),
+            group("a-again", "noise floor", &[1.02, 1.03, 1.04]),
+        ];
+        let floor = noise_floor(&groups, seconds_per_step).unwrap();
+        assert!((floor - 0.03).abs() < 1e-12, "{floor}");
+        // Wide spread dominates a small gap.
+        let groups = [
+            group("a", "s", &[0.5, 1.0, 1.5]),
+            group("a-again", "noise floor", &[1.0, 1.0, 1.0]),
+        ];
+        assert!((noise_floor(&groups, seconds_per_step).unwrap() - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_finding_separates_settings_within_the_floor_from_slower_ones() {
+        let groups = [
+            group("a", "s", &[1.00, 1.00, 1.00]),
+            group("b", "s", &[1.02, 1.02, 1.02]),
+            group("c", "s", &[1.50, 1.50, 1.50]),
+            group("a-again", "noise floor", &[0.90, 0.90, 0.90]),
+        ];
+        let text = finding(&groups, seconds_per_step, 0.03);
+        assert!(text.starts_with("found: fastest a (1.000 ms"), "{text}");
+        assert!(text.contains("noise floor (3.0%): b;"), "{text}");
+        assert!(text.contains("slower: c +50%"), "{text}");
+        // The twin measures the floor; it is not a setting.
+        assert!(!text.contains("a-again"), "{text}");
+    }
 }

@@ -7,7 +7,7 @@ use crate::checkpoint_file;
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{CliError, CliResult};
 use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
-use crate::study_cmd::{noise_floor, write, Group, Ran, Spec, Stat};
+use crate::study_cmd::{finding, noise_floor, write, Group, Ran, Spec, Stat};
 use dem::scene::Scene;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -267,6 +267,7 @@ pub(crate) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResul
             "noise floor: {:.1}% of the time per step (the same setting under two labels)",
             100.0 * floor
         );
+        println!("{}", finding(groups, stepping, floor));
     }
     println!("data and figures in {}", dir.display());
     Ok(())
