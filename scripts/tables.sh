@@ -76,6 +76,18 @@ RCB (docs/distributed.md)." \
 } >> "$page"
 echo "Ranks or threads: done" >&2
 {
+  echo "### Migration: reusing the previous partition or starting from scratch"
+  echo
+  echo "The bodies each repartitioning moves on the column collapse when the partitioner builds"
+  echo "on its previous partition (the default) and when it starts from scratch"
+  echo "(\`--fresh-partitions\`), with the work imbalance each reaches (docs/partition.md,"
+  echo "\"Repartitioning builds on the previous partition\")."
+  echo
+  scripts/reuse-table.sh 3000
+  echo
+} >> "$page"
+echo "Migration: done" >&2
+{
   echo "### Projection to the paper's run"
   echo
   echo "Ghost counts at 2-64 ranks on every partitioner, and the paper's run (10,000 particles,"

@@ -50,7 +50,9 @@ echo "test-slurm: study-accuracy ok" >&2
 id=$(submit --ntasks=2 jobs/study-exchange.sbatch scenes/silo-1000.toml 20)
 [ "$(finish "$id" 300)" = COMPLETED ] || fail "study-exchange: $(cat out/slurm-tridem-exchange-"$id".out)"
 d=out/study-exchange-$id
-[ "$(wc -l < "$d/summary.csv")" -eq 3 ] || fail "$d/summary.csv: $(cat "$d/summary.csv")"
+# A header, blocking and non-blocking, and blocking again for the noise floor.
+[ "$(wc -l < "$d/summary.csv")" -eq 4 ] || fail "$d/summary.csv: $(cat "$d/summary.csv")"
+grep -q '^blocking-2-again,noise floor,' "$d/summary.csv" || fail "$d/summary.csv has no noise floor"
 echo "test-slurm: study-exchange ok (srun --mpi=pmix)" >&2
 
 id=$(submit jobs/study-scheduling.sbatch scenes/silo-1000.toml 20)

@@ -89,6 +89,9 @@ pub struct Settings {
     pub skin: f64,
     /// What a particle weighs for the partitioner.
     pub weights: crate::Weights,
+    /// Repartitionings build on the previous partition (see
+    /// [`partition::Setup::reuse`]); off, each starts from scratch.
+    pub reuse: bool,
 }
 
 /// Where a run starts: the scene's initial state, or a checkpoint of it.
@@ -184,7 +187,13 @@ impl<'c> DistributedSimulation<'c> {
         drop(dealt_to);
         let part = settings
             .partitioner
-            .create(comm, max_halo)
+            .create(
+                comm,
+                partition::Setup {
+                    halo: max_halo,
+                    reuse: settings.reuse,
+                },
+            )
             .map_err(|e| e.to_string())?;
         let world = &scene.world;
         let mut local = Local::new(world.shapes.clone(), world.materials.clone());

@@ -53,6 +53,7 @@ fn main() {
             .map_or(0.0, |c| c.skin),
         // The partitions follow the work: bodies change ranks as they pile up.
         weights: distributed::Weights::Pairs,
+        reuse: true,
     };
     let mut dist = DistributedSimulation::new(&comm, &mut scene.clone(), Start::Fresh, settings)
         .unwrap_or_else(|e| panic!("{e}"));

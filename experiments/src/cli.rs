@@ -281,6 +281,11 @@ pub struct RunArgs {
     /// measured time (default: the scene's `[parallel]` weights, else pairs).
     #[arg(long, value_enum)]
     pub weights: Option<distributed::Weights>,
+    /// Under mpirun: partition from scratch every time, not building on the
+    /// previous partition (cut axes and positions, part numbers); for
+    /// measuring what that reuse saves in migration.
+    #[arg(long)]
+    pub fresh_partitions: bool,
     /// Under mpirun: write per-rank metrics as JSON lines to FILE.
     #[arg(long)]
     pub metrics: Option<PathBuf>,

@@ -61,5 +61,6 @@ pub fn settings(args: &RunArgs, scene: &Scene) -> CliResult<Settings> {
             .get::<dem::effects::ContactParams>()
             .map_or(0.0, |c| c.skin),
         weights,
+        reuse: !args.fresh_partitions,
     })
 }

@@ -46,7 +46,7 @@ pub fn run(args: &PartitionArgs) -> CliResult {
         .build_global()
         .map_err(|e| CliError::runtime(e.to_string()))?;
     let mut part = partitioner
-        .create(&world, halo)
+        .create(&world, partition::Setup::with_halo(halo))
         .map_err(|e| CliError::runtime(e.to_string()))?;
 
     let csv_path = match (&args.output, me) {
@@ -273,11 +273,7 @@ fn box_query_rate(
 }
 
 fn workload_name(args: &PartitionArgs) -> &'static str {
-    match args.workload {
-        partition::workload::Workload::Uniform => "uniform",
-        partition::workload::Workload::Blobs => "blobs",
-        partition::workload::Workload::Hopper => "hopper",
-    }
+    args.workload.name()
 }
 
 /// Max over mean of the ranks' weights as currently owned.

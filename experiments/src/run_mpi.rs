@@ -239,8 +239,13 @@ fn announce(told: &str, settings: &Settings, ranks: i32, threads: usize) {
         (Some(x), None) | (None, Some(x)) => x,
         (None, None) => "at the start only".into(),
     };
+    let fresh = if settings.reuse {
+        ""
+    } else {
+        " (from scratch)"
+    };
     eprintln!(
-        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {repartition}, \
+        "{told}, {ranks} ranks x {threads} threads, {}, {} exchange, repartition {repartition}{fresh}, \
          weights {}",
         settings.partitioner.name(),
         settings.exchange.name(),

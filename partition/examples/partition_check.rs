@@ -25,6 +25,8 @@ fn main() {
     let n: u64 = args[3].parse().unwrap();
     let halo: f64 = args[4].parse().unwrap();
     let shift: f64 = args.get(5).map_or(0.0, |s| s.parse().unwrap());
+    // "fresh": every partitioning from scratch, not building on the last.
+    let reuse = args.get(6).is_none_or(|s| s != "fresh");
 
     let spec = Spec::new(workload, n);
     let mut local = spec.initial(me, size);
@@ -32,7 +34,9 @@ fn main() {
     for it in &mut local.items {
         it.weight = if it.id % 3 == 0 { 3.0 } else { 1.0 };
     }
-    let mut part = backend.create(&world, halo).unwrap();
+    let mut part = backend
+        .create(&world, partition::Setup { halo, reuse })
+        .unwrap();
     let t = Instant::now();
     let owners = part.partition(&world, &local.items).unwrap();
     let dt = t.elapsed().as_secs_f64();

@@ -53,6 +53,27 @@ pub trait Partitioner {
     fn ranks_overlapping(&self, b: &Aabb, out: &mut Vec<i32>) -> Result<(), PartitionError>;
 }
 
+/// How a partitioner is set up.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setup {
+    /// The contact halo: METIS joins items whose boxes inflated by it overlap.
+    pub halo: f64,
+    /// Repartitionings build on the previous partition, so that they move
+    /// items in proportion to the drift: RCB keeps its cut axes and starts
+    /// from its old cuts (Zoltan's `RCB_REUSE` and `RCB_LOCK_DIRECTIONS`),
+    /// and parts are renumbered to overlap the old owners most (Zoltan's
+    /// `REMAP`, the same matching for METIS). Off, every partitioning starts
+    /// from scratch.
+    pub reuse: bool,
+}
+
+impl Setup {
+    /// Reusing the previous partition, with the contact halo `halo`.
+    pub fn with_halo(halo: f64) -> Setup {
+        Setup { halo, reuse: true }
+    }
+}
+
 /// The backends, by the names the command line uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -89,24 +110,30 @@ impl Backend {
     }
 
     /// Creates the partitioner on `comm` (Zoltan needs its communicator).
-    /// `halo` is the contact halo: METIS joins items whose boxes inflated by it overlap.
     pub fn create<'c>(
         self,
         comm: &'c SimpleCommunicator,
-        halo: f64,
+        setup: Setup,
     ) -> Result<Box<dyn Partitioner + 'c>, PartitionError> {
+        let zoltan = |method| -> Result<Box<dyn Partitioner + 'c>, PartitionError> {
+            let mut z = zoltan::ZoltanPartitioner::new(comm, method)?;
+            z.reuse(setup.reuse)?;
+            Ok(Box::new(z))
+        };
         Ok(match self {
-            Backend::ZoltanRcb => {
-                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Rcb)?)
+            Backend::ZoltanRcb => zoltan(zoltan::Method::Rcb)?,
+            Backend::ZoltanRib => zoltan(zoltan::Method::Rib)?,
+            Backend::ZoltanHsfc => zoltan(zoltan::Method::Hsfc)?,
+            Backend::Metis => {
+                let mut m = metis_graph::MetisPartitioner::with_halo(setup.halo);
+                m.remap = setup.reuse;
+                Box::new(m)
             }
-            Backend::ZoltanRib => {
-                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Rib)?)
+            Backend::Rcb => {
+                let mut r = rcb::Rcb::new();
+                r.reuse_cuts = setup.reuse;
+                Box::new(r)
             }
-            Backend::ZoltanHsfc => {
-                Box::new(zoltan::ZoltanPartitioner::new(comm, zoltan::Method::Hsfc)?)
-            }
-            Backend::Metis => Box::new(metis_graph::MetisPartitioner::with_halo(halo)),
-            Backend::Rcb => Box::new(rcb::Rcb::new()),
         })
     }
 }

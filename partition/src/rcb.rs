@@ -10,9 +10,13 @@
 //! to the bin holding the target, until the cut is within `tolerance` of the
 //! target weight. Histograms are filled with rayon inside each rank.
 //!
-//! Repartitioning reuses the previous cuts: each group's search starts from a
+//! Repartitioning reuses the previous cuts: each group keeps its old cut's
+//! axis (so a domain whose shape changes is not cut anew along another axis,
+//! which would move about half the items), and its search starts from a
 //! narrow bracket around its old cut, widened to the full extent only when the
-//! target weight is not inside it.
+//! target weight is not inside it. Parts keep their numbers: the left half of
+//! a group goes to its lower ranks. So a repartitioning moves the items the
+//! cuts pass over, in proportion to the drift.
 
 use crate::cut_tree::{CutTree, Node};
 use crate::{Aabb, Item, PartitionError, Partitioner};
@@ -34,7 +38,8 @@ pub struct Rcb {
     pub max_rounds: usize,
     /// Half-width of the first bracket around a reused cut, relative to the extent.
     pub reuse_margin: f64,
-    /// Start from the previous cuts when repartitioning.
+    /// Keep the previous cuts' axes and start from their positions when
+    /// repartitioning.
     pub reuse_cuts: bool,
     tree: Option<CutTree>,
 }
@@ -109,9 +114,9 @@ impl Rcb {
         owners
     }
 
-    /// Per group of the level: its axis (the longest of its items' box over
-    /// all ranks), its target weight, and its first bracket (around the
-    /// previous cut when that cut was along the same axis).
+    /// Per group of the level: its axis (the previous cut's, else the
+    /// longest of its items' box over all ranks), its target weight, and its
+    /// first bracket (around the previous cut).
     fn start_searches(
         &self,
         comm: &SimpleCommunicator,
@@ -136,17 +141,25 @@ impl Rcb {
         let mut searches = vec![settled; ng];
         for &g in active {
             let ext: [f64; 3] = [0, 1, 2].map(|k| ghi[3 * g + k] - glo[3 * g + k]);
-            let d = (0..3)
+            let longest = (0..3)
                 .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
                 .unwrap_or(0);
             let Group { node, r0, r1 } = level.groups[g];
+            // The old cut, if it still has items on both sides of its axis.
+            let old = match previous.and_then(|t| t.nodes.get(node)) {
+                Some(&Node::Cut { dim, value, .. }) if ext[dim] > 0.0 => Some((dim, value)),
+                _ => None,
+            };
+            let d = old.map_or(longest, |(dim, _)| dim);
             let (a, b) = (glo[3 * g + d], ghi[3 * g + d]);
             let full = if a <= b { (a, b) } else { (0.0, 0.0) };
             let mut bracket = full;
-            if let Some(Node::Cut { dim, value, .. }) = previous.and_then(|t| t.nodes.get(node)) {
-                if *dim == d && a < b {
-                    let m = self.reuse_margin * (b - a);
-                    bracket = ((value - m).max(a), (value + m).min(b));
+            if let Some((_, value)) = old {
+                let m = self.reuse_margin * (b - a);
+                let near = ((value - m).max(a), (value + m).min(b));
+                // An old cut the items have drifted away from is no guide.
+                if near.0 < near.1 {
+                    bracket = near;
                 }
             }
             searches[g] = Search {

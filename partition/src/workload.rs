@@ -15,17 +15,40 @@ pub enum Workload {
     /// Items falling through a funnel onto a floor: the distribution changes
     /// with the step, from a uniform cloud above to a pile at the outlet.
     Hopper,
+    /// A slab a little taller than wide that spreads until it is a little
+    /// wider than tall (a column collapsing, in small): the items barely
+    /// move, but the longest axis turns from z to x at time 0.02.
+    Spreading,
+}
+
+impl Workload {
+    pub const ALL: [Workload; 4] = [
+        Workload::Uniform,
+        Workload::Blobs,
+        Workload::Hopper,
+        Workload::Spreading,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Workload::Uniform => "uniform",
+            Workload::Blobs => "blobs",
+            Workload::Hopper => "hopper",
+            Workload::Spreading => "spreading",
+        }
+    }
 }
 
 impl std::str::FromStr for Workload {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "uniform" => Ok(Workload::Uniform),
-            "blobs" => Ok(Workload::Blobs),
-            "hopper" => Ok(Workload::Hopper),
-            _ => Err(format!("unknown workload `{s}` (uniform, blobs, hopper)")),
-        }
+        Workload::ALL
+            .into_iter()
+            .find(|w| w.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Workload::ALL.iter().map(|w| w.name()).collect();
+                format!("unknown workload `{s}` ({})", names.join(", "))
+            })
     }
 }
 
@@ -70,6 +93,11 @@ impl Workload {
                 let squeeze = z.clamp(0.15, 1.0);
                 [0.5 + (x0 - 0.5) * squeeze, 0.5 + (y0 - 0.5) * squeeze, z]
             }
+            Workload::Spreading => [
+                unit(id, 1) * (0.99 + t),
+                0.5 * unit(id, 2),
+                unit(id, 3) * (1.01 - t),
+            ],
         }
     }
 }

@@ -165,6 +165,39 @@ fn repartition_after_small_move_migrates_few() {
     }
 }
 
+/// A domain whose longest axis turns while its items hardly move: building
+/// on the previous partition (kept cut axes, parts renumbered to the old
+/// owners) moves few items, where a partition from scratch cuts along the
+/// new axis and moves about half of them.
+#[test]
+fn reuse_follows_the_drift_when_the_domain_changes_shape() {
+    let n = 6000u64;
+    let moved = |backend: &str, mode: &str| -> u64 {
+        let r = MpiRun::new(example_binary("partition_check"))
+            .ranks(2)
+            .args([backend, "spreading", &n.to_string(), "0.005", "0.04", mode])
+            .run()
+            .unwrap_or_else(|e| panic!("{backend} {mode}: {e}"));
+        assert_eq!(sum::<usize>(&r, "local_items_after"), n as usize);
+        r.reports[0].parse("remigrated_items")
+    };
+    for backend in ["rcb", "zoltan-rcb"] {
+        let (reused, fresh) = (moved(backend, "reuse"), moved(backend, "fresh"));
+        assert!(reused * 20 < n, "{backend}: reusing moved {reused} of {n}");
+        assert!(
+            fresh * 3 > n,
+            "{backend}: from scratch moved only {fresh} of {n}"
+        );
+    }
+    // METIS cuts the graph anew (here along the new long axis too); on two
+    // parts the renumbering is the best matching, so it never moves more.
+    let (reused, fresh) = (moved("metis", "reuse"), moved("metis", "fresh"));
+    assert!(
+        reused <= fresh,
+        "metis: renumbered {reused}, afresh {fresh}"
+    );
+}
+
 /// Byte exchanges in which some ranks send or receive nothing: an empty
 /// byte buffer's dangling pointer is Open MPI's MPI_IN_PLACE, which once made
 /// a migration abort (found when METIS gave every item to one rank).

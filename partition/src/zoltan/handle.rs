@@ -37,6 +37,10 @@ pub enum Param {
     KeepCuts(bool),
     /// Start RCB from the previous cuts when repartitioning.
     RcbReuse(bool),
+    /// Keep RCB's cut directions from the first partitioning on.
+    RcbLockDirections(bool),
+    /// Renumber the new parts to overlap the old assignment most.
+    Remap(bool),
     /// Weights per object (0 or 1 here).
     ObjWeightDim(u32),
 }
@@ -48,6 +52,8 @@ impl Param {
             Param::DebugLevel(v) => ("DEBUG_LEVEL", v.to_string()),
             Param::KeepCuts(b) => ("KEEP_CUTS", flag(*b)),
             Param::RcbReuse(b) => ("RCB_REUSE", flag(*b)),
+            Param::RcbLockDirections(b) => ("RCB_LOCK_DIRECTIONS", flag(*b)),
+            Param::Remap(b) => ("REMAP", flag(*b)),
             Param::ObjWeightDim(v) => ("OBJ_WEIGHT_DIM", v.to_string()),
         }
     }
@@ -187,7 +193,8 @@ unsafe extern "C" fn geom_multi(
 
 impl<'c> Zoltan<'c> {
     /// Creates a Zoltan structure on `comm` with the given method, keeping cuts
-    /// for point and box queries, quiet, returning export lists.
+    /// for point and box queries, quiet, returning export lists, reusing the
+    /// previous partition (see [`Zoltan::reuse`]).
     pub fn new(comm: &'c SimpleCommunicator, method: Method) -> Result<Self, ZoltanError> {
         use mpi::traits::Communicator;
         initialize()?;
@@ -210,10 +217,20 @@ impl<'c> Zoltan<'c> {
         zo.set(Param::ObjWeightDim(1))?;
         zo.set_param("RETURN_LISTS", "EXPORT")?;
         zo.set(Param::KeepCuts(true))?;
-        if method == Method::Rcb {
-            zo.set(Param::RcbReuse(true))?;
-        }
+        zo.reuse(method, true)?;
         Ok(zo)
+    }
+
+    /// Whether a repartitioning builds on the previous one: RCB keeps its cut
+    /// directions and starts each cut's search from the old one, and every
+    /// method renumbers its parts to overlap the old assignment most. Off,
+    /// each partitioning starts from scratch.
+    pub fn reuse(&mut self, method: Method, on: bool) -> Result<(), ZoltanError> {
+        if method == Method::Rcb {
+            self.set(Param::RcbReuse(on))?;
+            self.set(Param::RcbLockDirections(on))?;
+        }
+        self.set(Param::Remap(on))
     }
 
     /// Sets a typed parameter.

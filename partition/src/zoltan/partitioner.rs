@@ -19,6 +19,11 @@ impl<'c> ZoltanPartitioner<'c> {
         })
     }
 
+    /// Whether repartitionings build on the previous partition (the default).
+    pub fn reuse(&mut self, on: bool) -> Result<(), ZoltanError> {
+        self.zoltan.reuse(self.method, on)
+    }
+
     pub fn zoltan(&self) -> &Zoltan<'c> {
         &self.zoltan
     }
