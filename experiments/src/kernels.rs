@@ -501,6 +501,7 @@ fn write_sweep(args: &KernelsArgs, settings: &[Setting], rows: Vec<SweepRow>) ->
             series: sweep.to_string(),
             x: pen_ns,
             y: row.median,
+            max: row.max,
             certified: row.certified,
             label: label(sweep, &prm, batch),
         });
@@ -513,7 +514,12 @@ fn write_sweep(args: &KernelsArgs, settings: &[Setting], rows: Vec<SweepRow>) ->
     plot::error_vs_time(&svg_path, &points, args.pairs)
         .map_err(|e| CliError::runtime(format!("{}: {e}", svg_path.display())))?;
     print!("{csv}");
-    eprintln!("wrote {} and {}", csv_path.display(), svg_path.display());
+    eprintln!(
+        "wrote {}, {} and {}",
+        csv_path.display(),
+        svg_path.display(),
+        svg_path.with_extension("png").display()
+    );
     Ok(())
 }
 

@@ -48,14 +48,17 @@ pub struct Point {
     pub x: f64,
     /// Median |d - d_exact| / L over all pairs.
     pub y: f64,
+    /// The largest |d - d_exact| / L.
+    pub max: f64,
     /// Fraction of pairs certified to the tolerance.
     pub certified: f64,
     pub label: String,
 }
 
-/// Two panels against ns per pair: the median error over L (log scale; the max
-/// is in the CSV, it is set by the uncertified pairs) and the fraction of pairs
-/// certified, which decides how often the hybrid falls back.
+/// Two panels against ns per pair: the median (filled) and largest (open)
+/// error over L (log scale; the largest is set by the uncertified pairs) and
+/// the fraction of pairs certified, which decides how often the hybrid falls
+/// back.
 pub fn error_vs_time(path: &Path, points: &[Point], pairs: usize) -> Res {
     svg_and_png!(path, (1100, 500), |root: &DrawingArea<_, Shift>| {
         let (left, right) = root.split_horizontally(550);
@@ -80,13 +83,13 @@ where
     let xmax = (points.iter().map(|p| p.x).fold(0.0, f64::max) * 1.1).max(1.0);
     let ymax = points
         .iter()
-        .map(|p| p.y.max(ERROR_FLOOR))
+        .map(|p| p.max.max(p.y).max(ERROR_FLOOR))
         .fold(ERROR_FLOOR, f64::max)
         * 100.0;
     let mut series: Vec<&str> = points.iter().map(|p| p.series.as_str()).collect();
     series.dedup();
     let ydesc = if error {
-        "median error / L"
+        "median (filled) and largest (open) error / L"
     } else {
         "fraction certified"
     };
@@ -106,6 +109,17 @@ where
             .y_label_formatter(&|v| format!("{v:.0e}"))
             .draw()?;
         plot_series(&mut chart, points, &series, &|p| p.y.max(ERROR_FLOOR))?;
+        let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+        for (i, s) in series.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(
+                    points.iter().filter(|p| p.series == *s).map(|p| {
+                        Circle::new((p.x, p.max.max(ERROR_FLOOR)), 4, color.stroke_width(1))
+                    }),
+                )
+                .map_err(e)?;
+        }
     } else {
         let mut chart = builder.build_cartesian_2d(0.0..xmax, 0.0..1.05)?;
         chart.configure_mesh().x_desc(xdesc).draw()?;

@@ -164,6 +164,17 @@ fn the_hopper_on_any_split_is_one_process_to_the_bit() {
         3,
         vec!["--repartition-every", "0", "--repartition-when", "1.02"],
     ));
+    // Every repartitioning from scratch: other owners, the same bits.
+    splits.push((
+        4,
+        vec![
+            "--partitioner",
+            "metis",
+            "--repartition-every",
+            "10",
+            "--fresh-partitions",
+        ],
+    ));
     same_as_one_process("hopper", &scene("hopper.toml"), "3000", 1000, &splits);
 }
 

@@ -103,6 +103,17 @@ pub struct TriangleSet {
     generation: u64,
 }
 
+/// Makes room for `n` elements in an emptied vector without amortised
+/// doubling: a rank's set grows by a few ghosts at a time, and doubling would
+/// hold up to twice the triangles it needs. An eighth of headroom keeps
+/// small growth from reallocating every time.
+fn room_for<T>(v: &mut Vec<T>, n: usize) {
+    debug_assert!(v.is_empty());
+    if v.capacity() < n {
+        *v = Vec::with_capacity(n + n / 8);
+    }
+}
+
 /// A triangle (or a group's box) of the set, which a detection pass
 /// ([`PassSet::fill`]) may write through a shared reference.
 ///
@@ -327,6 +338,8 @@ impl TriangleSet {
         if !layout_matches {
             self.keys.clear();
             self.groups.clear();
+            room_for(&mut self.keys, sizes().sum());
+            room_for(&mut self.groups, bodies.len());
             for (i, n) in sizes().enumerate() {
                 let start = self.keys.len();
                 self.keys.extend((0..n as u32).map(|index| TriangleKey {
@@ -348,8 +361,10 @@ impl TriangleSet {
             self.owned = end;
             let zero = SetTriangle::new([DVec3::ZERO; 3], 0.0);
             self.triangles.clear();
+            room_for(&mut self.triangles, end);
             self.triangles.resize_with(end, || Slot::new(zero));
             self.poses.clear();
+            room_for(&mut self.poses, bodies.len());
             self.poses.resize(bodies.len(), None);
             self.fresh = Freshness::all_current(bodies.len());
             self.filled_boxes = vec![Slot::new(Bounds::EMPTY); bodies.len()];
