@@ -11,8 +11,9 @@
 //! target weight. Histograms are filled with rayon inside each rank.
 //!
 //! Repartitioning reuses the previous cuts: each group keeps its old cut's
-//! axis (so a domain whose shape changes is not cut anew along another axis,
-//! which would move about half the items), and its search starts from a
+//! axis while that axis is at least half its longest extent (so a domain
+//! whose shape changes a little is not cut anew along another axis, which
+//! would move about half the items), and its search starts from a
 //! narrow bracket around its old cut, widened to the full extent only when the
 //! target weight is not inside it. Parts keep their numbers: the left half of
 //! a group goes to its lower ranks. So a repartitioning moves the items the
@@ -24,6 +25,20 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rayon::prelude::*;
+
+/// A repartitioning keeps a cut's axis while the group's extent along it is
+/// at least this fraction of its longest extent. Small changes of shape then
+/// move only the items the cuts pass over; once the shape has changed a lot
+/// (a falling cloud become a flat pile), a cut across the old axis would make
+/// slabs and cut no contacts, and the axis turns, at the cost of one large
+/// migration.
+pub const KEEP_AXIS: f64 = 0.5;
+
+/// Whether a cut along `dim` is kept for a group of extents `ext`.
+pub fn keeps_axis(ext: &[f64; 3], dim: usize) -> bool {
+    let longest = ext.iter().copied().fold(0.0, f64::max);
+    ext[dim] > 0.0 && ext[dim] >= KEEP_AXIS * longest
+}
 
 /// Candidate cuts per histogram round.
 const BINS: usize = 256;
@@ -145,9 +160,10 @@ impl Rcb {
                 .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
                 .unwrap_or(0);
             let Group { node, r0, r1 } = level.groups[g];
-            // The old cut, if it still has items on both sides of its axis.
+            // The old cut, while its axis is still not much shorter than the
+            // longest (see [`KEEP_AXIS`]).
             let old = match previous.and_then(|t| t.nodes.get(node)) {
-                Some(&Node::Cut { dim, value, .. }) if ext[dim] > 0.0 => Some((dim, value)),
+                Some(&Node::Cut { dim, value, .. }) if keeps_axis(&ext, dim) => Some((dim, value)),
                 _ => None,
             };
             let d = old.map_or(longest, |(dim, _)| dim);
