@@ -14,7 +14,7 @@ mkdir -p "$out"
 runs=$out/runs.jsonl
 : > "$runs.new"
 for w in uniform blobs hopper; do
-  for p in zoltan-rcb zoltan-rib zoltan-hsfc metis rcb; do
+  for p in $("$tridem" partition --list); do
     mpirun --oversubscribe -np "$ranks" "$tridem" partition --partitioner "$p" \
       --workload "$w" --items "$items" --steps 3 --every 1 --json >> "$runs.new"
     echo "partition-table: $w $p done" >&2

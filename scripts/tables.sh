@@ -2,7 +2,7 @@
 # Regenerates docs/tables.md: the current results table of each area
 # (distance kernels, the DEM on one node, the partitioners, the DEM across
 # ranks: ranks against threads, memory, and the projection to the paper's
-# run), each under the command that printed it, stamped with the CPU model,
+# run; the output's size), each under the command that printed it, stamped with the CPU model,
 # the cores and the commit. About fifteen minutes on two cores.
 # Usage: scripts/tables.sh
 set -euo pipefail
@@ -98,5 +98,13 @@ echo "Migration: done" >&2
   echo
 } >> "$page"
 echo "Projection: done" >&2
+section "Energy books" "How well the energy books close: the largest departure of their sum \
+from its start over the run, against the run's largest kinetic energy, at each scene's dt, a half \
+and a quarter of it; and a lower bound on the steps one collision lasts (docs/dem.md, \
+\"Energy books\")." \
+  "scripts/energy-table.sh"
+section "Output" "Bytes of run.h5 per output step of the hopper: the states, the surface's points, \
+the particles' derived fields and the contacts (docs/output.md)." \
+  "scripts/output-size.sh scenes/hopper.toml"
 mv "$page" docs/tables.md
 echo "docs/tables.md regenerated" >&2

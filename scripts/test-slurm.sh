@@ -30,7 +30,8 @@ finish() {
   done
   echo "$s"
 }
-submit() { jobs/submit.sh --parsable "$@"; }
+# Plain sbatch, as users type it, from the repository root.
+submit() { sbatch --parsable "$@"; }
 
 id=$(submit jobs/kernels.sbatch 2000)
 [ "$(finish "$id" 300)" = COMPLETED ] || fail "kernels: $(cat out/slurm-tridem-kernels-"$id".out)"
@@ -82,5 +83,10 @@ scancel -b --signal=TERM "$id"
 grep -q "stopped by a signal" out/slurm-tridem-dem-run-"$id".out || fail "dem-run was not stopped by the signal"
 cmp "$work/straight/checkpoint.h5" "$work/requeued/checkpoint.h5" ||
   fail "the requeued run's final checkpoint differs from the uninterrupted run's"
-echo "test-slurm: dem-run ok (signal, checkpoint, requeue, resume: bit for bit)" >&2
+# Submitted again, the finished run has nothing left to do: the job ends
+# with success, saying so.
+id=$(submit --export=ALL,SCENE=$scene,DIR=$work/requeued jobs/dem-run.sbatch)
+[ "$(finish "$id" 120)" = COMPLETED ] || fail "dem-run submitted again: $(cat out/slurm-tridem-dem-run-"$id".out)"
+grep -q "nothing left to run" out/slurm-tridem-dem-run-"$id".out || fail "dem-run submitted again did not say it had finished"
+echo "test-slurm: dem-run ok (signal, checkpoint, requeue, resume: bit for bit; submitted again: nothing left)" >&2
 echo "test-slurm: all templates ran" >&2

@@ -4,9 +4,8 @@
 //! some hundred microseconds, separated by short serial ones. Rayon puts an
 //! idle worker to sleep after a few microseconds of polling, so every section
 //! starts by waking it: a futex call and, on a virtual machine, an
-//! inter-processor interrupt. On a 2-core cloud machine that cost more
-//! than the second thread saved (the hopper on 2 threads was no faster than on
-//! one, with a quarter of its time in the kernel). OpenMP runtimes avoid it by
+//! inter-processor interrupt, which can cost more than a second thread saves
+//! on sections this short. OpenMP runtimes avoid it by
 //! spinning for a while before sleeping; [`with_busy_workers`] does the same
 //! for the duration of a run: the other workers poll for work instead of
 //! sleeping. They burn their cores while the run lasts, which is what a

@@ -22,6 +22,7 @@ pub mod integrate;
 pub mod ledger;
 pub mod material;
 pub mod mesh;
+mod names;
 mod prefetch;
 pub mod scene;
 pub mod simulation;

@@ -389,8 +389,8 @@ pub fn frame_contacts(world: &World, ctx: &StepContext) -> Vec<FrameContact> {
 /// finite. The effects' states are checked as they are restored.
 pub fn check_checkpoint(scene: &Scene, checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
     let fail = |why: String| Err(CheckpointError(why));
-    let n = scene.world.bodies.len();
-    if checkpoint.fingerprint != scene.world.fingerprint() {
+    let n = scene.census.bodies();
+    if checkpoint.fingerprint != scene.fingerprint() {
         return fail(
             "the checkpoint was taken of another scene (materials, shapes, bodies or obstacles differ)"
                 .into(),

@@ -3,6 +3,7 @@
 use crate::body::Body;
 use crate::material::Material;
 use crate::mesh::TriMesh;
+use crate::scene::census::hash_body;
 use glam::DVec3;
 
 /// Everything that is simulated. Shapes are meshes in body coordinates (centre
@@ -55,6 +56,17 @@ impl World {
     /// scene. FNV-1a over the values' bits: stable across builds and
     /// platforms, unlike `std`'s hasher.
     pub fn fingerprint(&self) -> u64 {
+        let mut h = self.fingerprint_head();
+        for b in &self.bodies {
+            let fixed = b.is_static().then_some((b.x, b.q));
+            hash_body(&mut h, b.shape, b.material, b.mass, fixed);
+        }
+        h.0
+    }
+
+    /// The fingerprint's hash of the materials and shapes, to which the
+    /// bodies' part is fed (here, or from a scene's census).
+    pub(crate) fn fingerprint_head(&self) -> Fnv1a {
         let mut h = Fnv1a::default();
         for m in &self.materials {
             h.bytes(m.name.as_bytes());
@@ -73,16 +85,7 @@ impl World {
                 .flatten()
                 .for_each(|&i| h.u64(u64::from(i)));
         }
-        for b in &self.bodies {
-            h.u64(b.shape as u64);
-            h.u64(b.material as u64);
-            h.f64(b.mass);
-            if b.is_static() {
-                b.x.to_array().into_iter().for_each(|c| h.f64(c));
-                b.q.to_array().into_iter().for_each(|c| h.f64(c));
-            }
-        }
-        h.0
+        h
     }
 
     /// Pairs (inner, outer) of bodies of which the first lies wholly inside

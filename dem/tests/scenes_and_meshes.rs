@@ -250,3 +250,64 @@ fn obj_and_stl_meshes_load_and_bad_ones_name_the_file() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// A scene loaded in shares: the shares' particles are the whole scene's,
+/// each once, with the whole scene's ids and states; every share keeps the
+/// obstacles; and what each share knows of the whole (counts, fingerprint,
+/// the lines that placed bodies, the stable step) is what the whole scene
+/// says of itself.
+#[test]
+fn shares_of_a_scene_make_up_the_whole_scene() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    for file in ["hopper.toml", "mixed.toml", "silo-1000.toml"] {
+        let path = dir.join(file);
+        let whole = Scene::load(&path).unwrap();
+        let w = &whole.world;
+        let mut seen = vec![0; w.bodies.len()];
+        for ranks in [1, 3, 4] {
+            seen.iter_mut().for_each(|s| *s = 0);
+            for rank in 0..ranks {
+                let share = dem::scene::Deal { rank, ranks };
+                let part = Scene::load_dealt(&path, share).unwrap();
+                assert_eq!(part.fingerprint(), w.fingerprint(), "{file}");
+                assert_eq!(part.census.bodies(), w.bodies.len());
+                assert_eq!(part.census.particles(), w.dynamic_count());
+                assert_eq!(part.particle_triangles(), w.particle_triangles());
+                assert_eq!(
+                    part.stable_dt.map(f64::to_bits),
+                    whole.stable_dt.map(f64::to_bits)
+                );
+                for (i, b) in part.world.bodies.iter().enumerate() {
+                    let id = part.world.id(i) as usize;
+                    seen[id] += 1;
+                    let a = &w.bodies[id];
+                    assert_eq!((b.x, b.q, b.v, b.l, b.shape), (a.x, a.q, a.v, a.l, a.shape));
+                    assert!(b.is_static() || id as u32 % ranks == rank);
+                    assert_eq!(part.body_name(id), whole.body_name(id));
+                }
+            }
+            for (id, &n) in seen.iter().enumerate() {
+                let expected = if w.bodies[id].is_static() { ranks } else { 1 };
+                assert_eq!(n, expected, "{file}: body {id} on {n} of {ranks} shares");
+            }
+        }
+        // The first particle and the last obstacle name their tables' lines.
+        let text = std::fs::read_to_string(&path).unwrap();
+        let line_of = |table: &str| {
+            let lines: Vec<usize> = (1..)
+                .zip(text.lines())
+                .filter(|(_, l)| l.trim() == table)
+                .map(|(n, _)| n)
+                .collect();
+            lines.clone()
+        };
+        let first = line_of("[[particles]]")[0];
+        let last = *line_of("[[obstacles]]").last().unwrap();
+        assert_eq!(whole.body_name(0), format!("body 0 (line {first})"));
+        let n = w.bodies.len() - 1;
+        assert_eq!(whole.body_name(n), format!("body {n} (line {last})"));
+        let shapes: Vec<usize> = whole.census.shapes().collect();
+        let direct: Vec<usize> = w.bodies.iter().map(|b| b.shape).collect();
+        assert_eq!(shapes, direct, "{file}");
+    }
+}

@@ -164,7 +164,6 @@ pub fn draw(
 
 /// How the ghosts' motions travel relative to the detection among owned bodies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Exchange {
     /// Posted before, completed after (the overlap of the paper's Algorithm 1).
     Nonblocking,
@@ -172,25 +171,11 @@ pub enum Exchange {
     Blocking,
 }
 
-impl std::str::FromStr for Exchange {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Exchange, String> {
-        match s {
-            "nonblocking" => Ok(Exchange::Nonblocking),
-            "blocking" => Ok(Exchange::Blocking),
-            _ => Err(format!("unknown exchange `{s}` (nonblocking, blocking)")),
-        }
-    }
-}
-
-impl Exchange {
-    pub fn name(self) -> &'static str {
-        match self {
-            Exchange::Nonblocking => "nonblocking",
-            Exchange::Blocking => "blocking",
-        }
-    }
-}
+dem::named_enum!(
+    Exchange,
+    "exchange",
+    [(Blocking, "blocking"), (Nonblocking, "nonblocking")]
+);
 
 /// What [`exchange_motions`] received, and how long it waited.
 pub struct Received<R> {

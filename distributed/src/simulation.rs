@@ -3,10 +3,11 @@
 //! **What a rank holds.** Its particles, ghosts of other ranks' particles
 //! within contact reach of its own, and the obstacles within reach
 //! ([`Local`]); the scene's shapes and materials (one per kind of particle
-//! and per obstacle). Never the whole scene's bodies or triangles: at the
-//! start each rank keeps the particles dealt to it from the scene (k-th
-//! particle to rank k mod P), the partitioner then moves them to their
-//! owners.
+//! and per obstacle). Never the whole scene's bodies or triangles, at the
+//! start neither: each rank loads the scene keeping only the particles
+//! dealt to it (k-th particle to rank k mod P, `dem::scene::Deal`), and
+//! what needs the whole scene reads its census; the partitioner then moves
+//! the particles to their owners.
 //!
 //! **Who computes what.** The unit of the partition is the particle (a body
 //! of a few dozen triangles), weighted by its triangle count: a body pair's
@@ -59,7 +60,7 @@ use dem::frame::{EnergyBooks, Frame};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
-use dem::scene::Scene;
+use dem::scene::{Deal, Scene};
 use dem::simulation::{build_effects, check_checkpoint, energy_books, frame_contacts, shape_radii};
 use glam::DVec3;
 use mpi::collective::SystemOperation;
@@ -157,8 +158,8 @@ impl<'c> DistributedSimulation<'c> {
     /// ranks of `comm` (collective). A fresh run evaluates its initial
     /// forces, as one process does.
     ///
-    /// The scene's bodies are taken out of it: each rank keeps those dealt
-    /// to it, and holds no list of the whole scene's bodies from then on.
+    /// `scene` is this rank's share of it (loaded with the [`Deal`] of
+    /// this rank of `comm`); its bodies are taken out of it.
     pub fn new(
         comm: &'c SimpleCommunicator,
         scene: &mut Scene,
@@ -166,25 +167,39 @@ impl<'c> DistributedSimulation<'c> {
         settings: Settings,
     ) -> Result<Self, String> {
         let (me, size) = (comm.rank(), comm.size());
-        let world = &scene.world;
-        let (bodies, particles) = (world.bodies.len(), world.dynamic_count());
+        let share = Deal {
+            rank: me as u32,
+            ranks: size as u32,
+        };
+        if scene.deal != share {
+            return fail(format!(
+                "the scene was loaded for rank {} of {}, not {me} of {size}",
+                scene.deal.rank, scene.deal.ranks
+            ));
+        }
+        let census = &scene.census;
+        let (bodies, particles) = (census.bodies(), census.particles());
         if let Start::Resume(c) = start {
             check_checkpoint(scene, c).map_err(|e| e.to_string())?;
             // The whole state checked on every rank, so that all refuse alike.
             dem::simulation::restore_effects(&mut build_effects(scene), &c.effects, bodies)
                 .map_err(|e| e.to_string())?;
         }
-        let fingerprint = world.fingerprint();
-        let halo = |b: &Body| world.materials[b.material].halo.unwrap_or(0.0);
-        let max_halo = world.bodies.iter().map(halo).fold(0.0, f64::max);
-        let (entries, obstacles) = dealt(scene, start_state(&start), me, size);
-        let dealt_to = dealt_ranks(&scene.world, size);
+        let fingerprint = scene.fingerprint();
+        let materials = &scene.world.materials;
+        let max_halo = census
+            .runs()
+            .iter()
+            .map(|r| materials[r.material].halo.unwrap_or(0.0))
+            .fold(0.0, f64::max);
+        let (entries, obstacles) = dealt(scene, start_state(&start), me);
         scene.world.bodies = Vec::new();
+        scene.world.ids = Vec::new();
         let mut effects = build_effects(scene);
         if let Start::Resume(c) = start {
+            let dealt_to = |id: usize| (id < particles).then(|| share.rank_of(id as u32) as i32);
             restore_share(&mut effects, c, &dealt_to, me, bodies)?;
         }
-        drop(dealt_to);
         let part = settings
             .partitioner
             .create(
@@ -1011,20 +1026,17 @@ impl FrameParts {
     }
 }
 
-/// The particles dealt to rank `me` of `size` (the k-th particle of the
-/// scene to rank k mod size), in the scene's state or `state`'s, and every
-/// obstacle with its box (inflated by its halo).
+/// The particles the scene dealt to this rank (`me`), in the scene's state
+/// or `state`'s, and every obstacle with its box (inflated by its halo).
 fn dealt(
     scene: &Scene,
     state: Option<&Checkpoint>,
     me: i32,
-    size: i32,
 ) -> (Vec<Entry>, Vec<(u32, Body, Bounds)>) {
     let world = &scene.world;
     let (mut entries, mut obstacles) = (Vec::new(), Vec::new());
-    let mut k = 0;
     for (i, b) in world.bodies.iter().enumerate() {
-        let id = i as u32;
+        let id = world.id(i);
         if b.is_static() {
             let (lo, hi) = world.world_bounds(i);
             let halo = world.materials[b.material].halo.unwrap_or(0.0);
@@ -1032,16 +1044,13 @@ fn dealt(
             obstacles.push((id, b.clone(), bounds));
             continue;
         }
-        k += 1;
-        if (k - 1) % size != me {
-            continue;
-        }
         let mut body = b.clone();
         let (mut force, mut torque) = (DVec3::ZERO, DVec3::ZERO);
         if let Some(c) = state {
-            let s = &c.bodies[i];
+            let k = id as usize;
+            let s = &c.bodies[k];
             (body.x, body.q, body.v, body.l) = (s.x, s.q, s.v, s.l);
-            (force, torque) = (c.force[i], c.torque[i]);
+            (force, torque) = (c.force[k], c.torque[k]);
         }
         entries.push(Entry {
             id,
@@ -1070,30 +1079,15 @@ fn start_time(start: &Start) -> (f64, u64) {
     }
 }
 
-/// Per body, the rank its particle was dealt to (-1 for an obstacle).
-fn dealt_ranks(world: &dem::world::World, size: i32) -> Vec<i32> {
-    let mut k = 0;
-    world
-        .bodies
-        .iter()
-        .map(|b| {
-            if b.is_static() {
-                return -1;
-            }
-            k += 1;
-            (k - 1) % size
-        })
-        .collect()
-}
-
 /// Restores this rank's share of the effects' states from `checkpoint` (of
 /// a scene of `bodies` bodies): the books on rank 0 (exact sums: the
 /// others' share is zero), and the history of the contacts whose home
-/// particle was dealt to this rank (`dealt_to`, per body).
+/// particle was dealt to this rank (`dealt_to`: a particle's rank, by id;
+/// `None` for an obstacle).
 fn restore_share(
     effects: &mut [Box<dyn Effect>],
     checkpoint: &Checkpoint,
-    dealt_to: &[i32],
+    dealt_to: &dyn Fn(usize) -> Option<i32>,
     me: i32,
     bodies: usize,
 ) -> Result<(), String> {
@@ -1112,11 +1106,11 @@ fn restore_share(
                     .chunks_exact(s.row)
                     .filter(|r| {
                         let (a, b) = (r[0] as usize, r[1] as usize);
-                        let home = match dealt_to.get(a) {
-                            Some(-1) => b,
-                            _ => a,
+                        let home = match dealt_to(a) {
+                            None => b,
+                            Some(_) => a,
                         };
-                        dealt_to.get(home) == Some(&me)
+                        dealt_to(home) == Some(me)
                     })
                     .flatten()
                     .copied()

@@ -37,47 +37,11 @@ pub enum Weights {
     Time,
 }
 
-impl Weights {
-    /// Every choice, with its name: the one list the command line, the
-    /// scene's `[parallel] weights` and the studies read.
-    pub const ALL: [(Weights, &'static str); 3] = [
-        (Weights::Triangles, "triangles"),
-        (Weights::Pairs, "pairs"),
-        (Weights::Time, "time"),
-    ];
-
-    pub fn name(self) -> &'static str {
-        Self::ALL
-            .iter()
-            .find(|(w, _)| *w == self)
-            .map(|(_, n)| *n)
-            .expect("every variant is listed")
-    }
-}
-
-impl std::str::FromStr for Weights {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Weights, String> {
-        match Self::ALL.iter().find(|(_, n)| *n == s) {
-            Some((w, _)) => Ok(*w),
-            None => {
-                let names: Vec<&str> = Self::ALL.iter().map(|(_, n)| *n).collect();
-                Err(format!("unknown weights `{s}` ({})", names.join(", ")))
-            }
-        }
-    }
-}
-
-#[cfg(feature = "clap")]
-impl clap::ValueEnum for Weights {
-    fn value_variants<'a>() -> &'a [Self] {
-        &[Weights::Triangles, Weights::Pairs, Weights::Time]
-    }
-
-    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
-        Some(clap::builder::PossibleValue::new(self.name()))
-    }
-}
+dem::named_enum!(
+    Weights,
+    "weights",
+    [(Triangles, "triangles"), (Pairs, "pairs"), (Time, "time")]
+);
 
 /// The cost (ns per step) of a particle's contacts: `work` body pairs and
 /// triangle pairs examined over `steps` steps, plus its own per-step cost.
@@ -123,7 +87,7 @@ mod tests {
 
     #[test]
     fn names_read_back_and_unknown_ones_are_refused_with_the_list() {
-        for (w, n) in Weights::ALL {
+        for &(w, n) in Weights::ALL {
             assert_eq!(n.parse::<Weights>(), Ok(w));
             assert_eq!(w.name(), n);
         }

@@ -55,7 +55,12 @@ fn main() {
         weights: distributed::Weights::Pairs,
         reuse: true,
     };
-    let mut dist = DistributedSimulation::new(&comm, &mut scene.clone(), Start::Fresh, settings)
+    let share = dem::scene::Deal {
+        rank: comm.rank() as u32,
+        ranks: comm.size() as u32,
+    };
+    let mut mine = Scene::load_dealt(&path, share).unwrap_or_else(|e| panic!("{e}"));
+    let mut dist = DistributedSimulation::new(&comm, &mut mine, Start::Fresh, settings)
         .unwrap_or_else(|e| panic!("{e}"));
     let (mut sent, mut received) = (0, 0);
     for _ in 0..steps {

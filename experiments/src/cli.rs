@@ -71,6 +71,16 @@ pub enum Command {
     #[command(after_help = "Example:\n  \
         tridem partition-plot out/partition.jsonl --output out/partition.svg")]
     PartitionPlot(PartitionPlotArgs),
+    /// Plot a run's per-step scalars from its output (DIR/run.h5): the
+    /// energy books over time (--energy), or any named series (--series).
+    ///
+    /// Writes DIR/NAME.svg, DIR/NAME.png and DIR/NAME.csv (the plotted
+    /// numbers) for each plot; --list prints the series the run has.
+    #[command(after_help = "Examples:\n  \
+        tridem plot out/hopper --energy\n  \
+        tridem plot out/hopper --series contacts --series kinetic_translation\n  \
+        tridem plot out/hopper --list")]
+    Plot(PlotArgs),
     /// A study on real runs of a scene: repartition frequency, partitioners,
     /// the ghost exchange (under mpirun), thread scheduling, or what kernel
     /// accuracy costs; metrics, a summary CSV, figures (SVG and PNG) and a table.
@@ -192,6 +202,22 @@ pub struct PartitionPlotArgs {
     /// The SVG to write.
     #[arg(long)]
     pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct PlotArgs {
+    /// A run's output directory (`tridem run --output DIR`).
+    pub dir: PathBuf,
+    /// The energy books: kinetic (translation, rotation), each effect's
+    /// stored and dissipated energy, and their sum.
+    #[arg(long)]
+    pub energy: bool,
+    /// A per-step scalar by name (repeatable; --list names them).
+    #[arg(long)]
+    pub series: Vec<String>,
+    /// Print the names of the run's per-step scalars, one per line.
+    #[arg(long, exclusive = true)]
+    pub list: bool,
 }
 
 #[derive(Args, Debug)]

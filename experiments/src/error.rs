@@ -26,6 +26,16 @@ impl CliError {
         }
     }
 
+    /// A resumed run that has already reached its scene's end: nothing is
+    /// wrong, but nothing was run either; exit code 3, so that a job that
+    /// requeues itself can tell a finished run from a failed one.
+    pub fn finished(message: impl Into<String>) -> Self {
+        CliError {
+            message: message.into(),
+            code: 3,
+        }
+    }
+
     /// An error another MPI rank reports: this rank ends with its code,
     /// silently, so that the message is printed once.
     pub fn reported_elsewhere(code: u8) -> Self {

@@ -8,7 +8,8 @@ pub fn run(args: &InfoArgs) -> CliResult {
     let universe =
         mpi::initialize().ok_or_else(|| CliError::runtime("MPI was already initialised"))?;
     let world = universe.world();
-    let zoltan = partition::zoltan::initialize().map_err(|e| CliError::runtime(e.to_string()))?;
+    let zoltan =
+        partition::zoltan::initialize(&universe).map_err(|e| CliError::runtime(e.to_string()))?;
     if world.rank() != 0 {
         return Ok(());
     }

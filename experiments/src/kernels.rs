@@ -365,18 +365,54 @@ fn accuracy_sweep(args: &KernelsArgs) -> CliResult {
     write_sweep(args, &settings, rows)
 }
 
+/// What a setting of the sweep varies (each alone, from the defaults).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Sweep {
+    Iterations,
+    IterationsNoFinish,
+    FinishRounds,
+    Penalty,
+    Tolerance,
+    Batch,
+}
+
+impl Sweep {
+    /// The name in the CSV and the plot's legend.
+    fn name(self) -> &'static str {
+        match self {
+            Sweep::Iterations => "iterations",
+            Sweep::IterationsNoFinish => "iterations (no finish)",
+            Sweep::FinishRounds => "finish rounds",
+            Sweep::Penalty => "penalty r",
+            Sweep::Tolerance => "tolerance",
+            Sweep::Batch => "batch",
+        }
+    }
+
+    /// A point's label: the value this sweep varies.
+    fn label(self, p: &PenaltyParams, batch: usize) -> String {
+        match self {
+            Sweep::Iterations | Sweep::IterationsNoFinish => format!("{}", p.max_iterations),
+            Sweep::FinishRounds => format!("rounds={}", p.finish_rounds),
+            Sweep::Penalty => format!("r={:e}", p.penalty),
+            Sweep::Tolerance => format!("tol={:e}", p.tol),
+            Sweep::Batch => format!("N={batch}"),
+        }
+    }
+}
+
 /// One setting of the sweep: what it varies, the penalty kernel's
 /// parameters, and the batch size.
-type Setting = (&'static str, PenaltyParams, usize);
+type Setting = (Sweep, PenaltyParams, usize);
 
 /// Iterations (with and without the exact finish), finish rounds, penalty
 /// r, tolerance and batch size, each varied alone from the defaults.
 fn sweep_settings() -> Vec<Setting> {
     let d = PenaltyParams::default();
     let mut settings: Vec<Setting> = Vec::new();
-    for (name, rounds) in [
-        ("iterations", d.finish_rounds),
-        ("iterations (no finish)", 0),
+    for (sweep, rounds) in [
+        (Sweep::Iterations, d.finish_rounds),
+        (Sweep::IterationsNoFinish, 0),
     ] {
         for max_iterations in 1..=8 {
             let p = PenaltyParams {
@@ -384,20 +420,20 @@ fn sweep_settings() -> Vec<Setting> {
                 finish_rounds: rounds,
                 ..d
             };
-            settings.push((name, p, 8));
+            settings.push((sweep, p, 8));
         }
     }
     for finish_rounds in 0..=4 {
-        settings.push(("finish rounds", PenaltyParams { finish_rounds, ..d }, 8));
+        settings.push((Sweep::FinishRounds, PenaltyParams { finish_rounds, ..d }, 8));
     }
     for penalty in [1e2, 1e4, 1e6, 1e8, 1e10] {
-        settings.push(("penalty r", PenaltyParams { penalty, ..d }, 8));
+        settings.push((Sweep::Penalty, PenaltyParams { penalty, ..d }, 8));
     }
     for tol in [1e-6, 1e-8, 1e-10, 1e-12, 1e-13] {
-        settings.push(("tolerance", PenaltyParams { tol, ..d }, 8));
+        settings.push((Sweep::Tolerance, PenaltyParams { tol, ..d }, 8));
     }
     for b in [1, 2, 4, 8, 16, 32, 64] {
-        settings.push(("batch", d, b));
+        settings.push((Sweep::Batch, d, b));
     }
     settings
 }
@@ -425,7 +461,7 @@ fn sweep_accuracy(
     let n = pairs.len() as f64;
     let mut rows = Vec::new();
     for &(sweep, prm, batch) in settings {
-        bar.set_message(sweep);
+        bar.set_message(sweep.name());
         let run = |method| {
             pool.install(|| distances(pairs, &sweep_options(method, prm, batch)).expect("batch"))
         };
@@ -485,7 +521,8 @@ fn write_sweep(args: &KernelsArgs, settings: &[Setting], rows: Vec<SweepRow>) ->
     for (&(sweep, prm, batch), row) in settings.iter().zip(rows) {
         let (pen_ns, hyb_ns) = (stat.of(row.pen_ns), stat.of(row.hyb_ns));
         csv.push_str(&format!(
-            "{sweep},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e},{}\n",
+            "{},{},{},{},{batch},{},{pen_ns:.2},{hyb_ns:.2},{:e},{:e},{:.4},{:.4},{:e},{}\n",
+            sweep.name(),
             prm.max_iterations,
             prm.penalty,
             prm.tol,
@@ -498,12 +535,12 @@ fn write_sweep(args: &KernelsArgs, settings: &[Setting], rows: Vec<SweepRow>) ->
             stat.name()
         ));
         points.push(plot::Point {
-            series: sweep.to_string(),
+            series: sweep.name().to_string(),
             x: pen_ns,
             y: row.median,
             max: row.max,
             certified: row.certified,
-            label: label(sweep, &prm, batch),
+            label: sweep.label(&prm, batch),
         });
     }
     let dir = &args.output;
@@ -535,16 +572,6 @@ struct SweepRow {
     hyb_ns: Vec<f64>,
 }
 
-fn label(sweep: &str, p: &PenaltyParams, batch: usize) -> String {
-    match sweep {
-        "penalty r" => format!("r={:e}", p.penalty),
-        "tolerance" => format!("tol={:e}", p.tol),
-        "batch" => format!("N={batch}"),
-        "finish rounds" => format!("rounds={}", p.finish_rounds),
-        _ => format!("{}", p.max_iterations),
-    }
-}
-
 fn rel_errors(pairs: &[(Triangle, Triangle)], got: &[Closest], exact: &[Closest]) -> Vec<f64> {
     pairs
         .iter()
@@ -573,10 +600,10 @@ fn timed<R>(f: impl FnOnce() -> R) -> (R, f64) {
 /// run: `with_busy_workers`) until `f` returns.
 ///
 /// Rows run one after the other, so a pool's workers sleep while the other
-/// rows run. On the 2-core VMs of docs/distance.md, waking a sleeping worker
-/// took 0.25-0.6 ms, and sometimes the woken thread was run on the busy core
-/// until the first had finished: 10-20% of a 200,000-pair run at two threads,
-/// charged to the kernel. The clock starts once a broadcast has reached every
+/// rows run. Waking a sleeping worker takes a fraction of a millisecond, and
+/// the woken thread may be run on the busy core until the first has
+/// finished: a large part of a short run at two threads, charged to the
+/// kernel. The clock starts once a broadcast has reached every
 /// worker and, on top of that, the other workers have polled for
 /// `WARM_UP` (an idle core's first milliseconds ran about 10% slower).
 fn timed_on_awake_pool<R: Send>(

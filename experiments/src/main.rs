@@ -13,6 +13,7 @@ mod parallel;
 mod partition_cmd;
 mod pingpong;
 mod plot;
+mod plot_cmd;
 mod run_cmd;
 mod run_mpi;
 mod run_summary;
@@ -37,10 +38,11 @@ fn main() -> ExitCode {
     let cli = match cli::Cli::try_parse() {
         Ok(cli) => cli,
         // Under an MPI launcher every rank parses the same command line:
-        // rank 0 alone says what is wrong with it (or prints the help).
-        Err(e) if launched_rank().is_some_and(|r| r != 0) => {
-            return ExitCode::from(e.exit_code() as u8);
-        }
+        // rank 0 alone says what is wrong with it (or prints the help),
+        // and its exit code is the run's. The others end quietly and with
+        // success: a rank ending in failure first would make the launcher
+        // kill rank 0 before its message is out.
+        Err(_) if launched_rank().is_some_and(|r| r != 0) => return ExitCode::SUCCESS,
         Err(e) => e.exit(),
     };
     let result = match cli.command {
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         cli::Command::Run(args) => run_cmd::run(&args),
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
+        cli::Command::Plot(args) => plot_cmd::run(&args),
         cli::Command::Study(args) => study_cmd::run(&args),
     };
     match result {

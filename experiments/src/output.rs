@@ -2,23 +2,33 @@
 //! meshes and the surface's connectivity once, and an XDMF sidecar so that
 //! ParaView opens it directly.
 //!
-//! Layout of `DIR/run.h5`:
-//! - `/shapes/<s>/vertices` (V×3, body frame) and `/shapes/<s>/triangles` (T×3)
-//! - `/surface/triangles` (T×3) and `/surface/body` (T): every body's mesh, its
-//!   vertices numbered body after body as in each step's `surface/points`;
-//!   written once (the connectivity never changes).
-//! - `/steps/<k>/{positions, velocities, angular_momenta} (N×3), orientations (N×4, xyzw),
-//!   contacts (N), time (attribute)`
+//! Layout of `DIR/run.h5` (SI units; docs/output.md has the whole table):
+//! - written once: `/shapes/<s>/vertices` (V×3, body frame) and
+//!   `/shapes/<s>/triangles` (T×3); `/surface/{triangles (T×3), body (T),
+//!   material (T)}`, every body's mesh with its vertices numbered body after
+//!   body as in each step's `surface/points`; `/bodies/{material, mass,
+//!   obstacle}` (N; mass 0 for obstacles); `/materials` (an attribute per
+//!   material, its index).
+//! - `/steps/<k>/{positions, velocities, angular_momenta, angular_velocities}`
+//!   (N×3), `orientations` (N×4, xyzw), `speeds`, `kinetic_translation`,
+//!   `kinetic_rotation` (N), `contacts` (N, contacts per body), `time`
+//!   (attribute).
 //! - `/steps/<k>/energy`: attributes `kinetic_translation`, `kinetic_rotation`, and per
 //!   effect `<effect>_stored` (gravity's potential, springs) and `<effect>_dissipated`
 //!   (work of dashpots, sliding and damping since the start), in J: their sum is constant
 //!   up to the integrator's error.
-//! - `/steps/<k>/contact_forces/{points (C×3), forces (C×3), bodies (C×2)}`: each contact's
-//!   point, the force on its first body (the second takes the opposite), and the bodies.
+//! - `/steps/<k>/contact_forces/`: per contact (C) its `points`, `forces` (on the first
+//!   body; the second takes the opposite), `normal_forces`, `tangential_forces` (C×3),
+//!   `normal_force_magnitudes`, `overlaps` (C), `bodies` (C×2); and the contact
+//!   network's `line_points` (2C×3) and `lines` (C×2).
 //! - `/steps/<k>/surface/points` (V×3): every body's mesh vertices where the body stands.
 //!
-//! The XDMF file `DIR/run.xmf` shows the surfaces and the contact forces (points with a
-//! `force` vector: glyphs in ParaView show the force chains) as time series.
+//! The XDMF file `DIR/run.xmf` holds four temporal collections, which ParaView
+//! opens directly: `surface` (the meshes, cells by body and material),
+//! `particles` (a point per body with its motion, mass, material and
+//! coordination number), `contacts` (a line per contact between the bodies'
+//! centres, with its forces and overlap: the force network) and
+//! `contact_points` (the contact points with their force, for glyphs).
 //!
 //! Each step is written and flushed as it is produced, so a run stopped early
 //! keeps everything written before; a run resumed from a checkpoint goes on
@@ -28,7 +38,8 @@
 use crate::error::{create_output_dir, CliError, CliResult};
 use dem::frame::Frame;
 use dem::mesh::TriMesh;
-use dem::world::World;
+use dem::scene::census::Run;
+use dem::scene::{Census, Scene};
 use ndarray::{Array1, Array2};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -129,20 +140,40 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// What a run's output is made of, whatever its state: the shapes, and
-/// which body has which (obstacles included, in id order).
+/// What a run's output is made of, whatever its state: the shapes and
+/// materials, and which body has which (obstacles included, in id order).
 #[derive(Debug, Clone)]
 pub struct Layout {
     pub shapes: Vec<TriMesh>,
     pub body_shapes: Vec<usize>,
+    pub materials: Vec<String>,
+    /// Runs of bodies alike: material, mass, inverse inertia (the census).
+    pub census: Census,
 }
 
 impl Layout {
-    pub fn of(world: &World) -> Layout {
+    /// The layout of the whole scene, however many of its bodies `scene`
+    /// holds.
+    pub fn of(scene: &Scene) -> Layout {
         Layout {
-            shapes: world.shapes.clone(),
-            body_shapes: world.bodies.iter().map(|b| b.shape).collect(),
+            shapes: scene.world.shapes.clone(),
+            body_shapes: scene.census.shapes().collect(),
+            materials: scene
+                .world
+                .materials
+                .iter()
+                .map(|m| m.name.clone())
+                .collect(),
+            census: scene.census.clone(),
         }
+    }
+
+    /// Per body, in id order: what its run says of it.
+    fn per_body<T: Copy>(&self, f: impl Fn(&Run) -> T) -> Vec<T> {
+        let runs = self.census.runs();
+        runs.iter()
+            .flat_map(|r| std::iter::repeat_n(f(r), r.ids.len()))
+            .collect()
     }
 }
 
@@ -154,6 +185,8 @@ pub struct Output {
     /// The surface's size: points (mesh vertices) and triangles.
     points: usize,
     triangles: usize,
+    /// Per body: whether it is an obstacle.
+    obstacle: Vec<bool>,
 }
 
 /// What the XDMF index needs of an output step.
@@ -193,8 +226,40 @@ impl Output {
         }
         let mut out = Output::of(file, dir, layout);
         out.write_connectivity()?;
+        out.write_bodies()?;
         out.file.create_group("steps").map_err(h5err)?;
         Ok(out)
+    }
+
+    /// `/bodies/{material, mass, obstacle}` per body and `/materials` (an
+    /// attribute per material: its name, with its index as value): what
+    /// never changes, written once.
+    fn write_bodies(&self) -> CliResult {
+        let layout = &self.layout;
+        let g = self.file.create_group("bodies").map_err(h5err)?;
+        let material: Vec<u32> = layout.per_body(|r| r.material as u32);
+        let obstacle: Vec<u8> = layout.per_body(|r| u8::from(r.fixed.is_some()));
+        let mass: Vec<f64> = layout.per_body(|r| if r.fixed.is_some() { 0.0 } else { r.mass });
+        g.new_dataset_builder()
+            .with_data(&Array1::from(material))
+            .create("material")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&Array1::from(mass))
+            .create("mass")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&Array1::from(obstacle))
+            .create("obstacle")
+            .map_err(h5err)?;
+        let m = self.file.create_group("materials").map_err(h5err)?;
+        for (i, name) in layout.materials.iter().enumerate() {
+            m.new_attr::<u32>()
+                .create(name.as_str())
+                .and_then(|a| a.write_scalar(&(i as u32)))
+                .map_err(h5err)?;
+        }
+        Ok(())
     }
 
     fn of(file: hdf5::File, dir: &Path, layout: &Layout) -> Output {
@@ -208,6 +273,7 @@ impl Output {
             steps: Vec::new(),
             points: count(|m| m.vertices.len()),
             triangles: count(|m| m.triangles.len()),
+            obstacle: layout.per_body(|r| r.fixed.is_some()),
             layout: layout.clone(),
         }
     }
@@ -217,12 +283,15 @@ impl Output {
     fn write_connectivity(&mut self) -> CliResult {
         let mut triangles = Vec::with_capacity(self.triangles);
         let mut body = Vec::with_capacity(self.triangles);
+        let mut material = Vec::with_capacity(self.triangles);
+        let materials: Vec<u32> = self.layout.per_body(|r| r.material as u32);
         let mut first = 0u32;
         for (i, &s) in self.layout.body_shapes.iter().enumerate() {
             let m = &self.layout.shapes[s];
             for t in &m.triangles {
                 triangles.push(t.map(|v| first + v));
                 body.push(i as u32);
+                material.push(materials[i]);
             }
             first += m.vertices.len() as u32;
         }
@@ -235,6 +304,10 @@ impl Output {
         g.new_dataset_builder()
             .with_data(&Array1::from(body))
             .create("body")
+            .map_err(h5err)?;
+        g.new_dataset_builder()
+            .with_data(&Array1::from(material))
+            .create("material")
             .map_err(h5err)?;
         Ok(())
     }
@@ -260,6 +333,7 @@ impl Output {
             .map_err(|e| fail(format!("not the output of tridem run: {e}")))?;
         let triangles = file
             .dataset("surface/body")
+            .and_then(|d| file.group("bodies").map(|_| d))
             .map_err(|e| fail(format!("not the output of this tridem run: {e}")))?
             .size();
         let mut steps = Vec::new();
@@ -366,9 +440,10 @@ impl Output {
             .create("time")
             .and_then(|a| a.write_scalar(&frame.time))
             .map_err(h5err)?;
+        self.write_motion(&g, frame)?;
         self.write_surface(&g, frame)?;
         write_energies(&g, frame)?;
-        let nc = write_contacts(&g, frame)?;
+        let nc = write_contacts(&g, frame, &self.obstacle)?;
         self.file.flush().map_err(h5err)?;
         self.steps.push(StepIndex {
             k,
@@ -377,6 +452,47 @@ impl Output {
             contacts: nc,
         });
         self.write_xdmf()
+    }
+
+    /// What the bodies' states give per body: angular velocity (rad/s),
+    /// speed (m/s), and kinetic energy of translation and of rotation (J);
+    /// zero for obstacles.
+    fn write_motion(&self, g: &hdf5::Group, frame: &Frame) -> CliResult {
+        let b = &frame.bodies;
+        let n = b.len();
+        let runs: Vec<(f64, glam::DMat3, bool)> = self
+            .layout
+            .per_body(|r| (r.mass, r.inv_inertia, r.fixed.is_some()));
+        let mut omega = Array2::<f64>::zeros((n, 3));
+        let (mut speed, mut translation, mut rotation) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        for (i, s) in b.iter().enumerate() {
+            let (mass, inv_inertia, obstacle) = runs[i];
+            if obstacle {
+                continue;
+            }
+            let w = dem::body::omega_of(s.q, inv_inertia, s.l);
+            for c in 0..3 {
+                omega[[i, c]] = w[c];
+            }
+            speed[i] = s.v.length();
+            translation[i] = 0.5 * mass * s.v.length_squared();
+            rotation[i] = 0.5 * s.l.dot(w);
+        }
+        g.new_dataset_builder()
+            .with_data(&omega)
+            .create("angular_velocities")
+            .map_err(h5err)?;
+        for (name, v) in [
+            ("speeds", speed),
+            ("kinetic_translation", translation),
+            ("kinetic_rotation", rotation),
+        ] {
+            g.new_dataset_builder()
+                .with_data(&Array1::from(v))
+                .create(name)
+                .map_err(h5err)?;
+        }
+        Ok(())
     }
 
     /// The step's surface points: each body's mesh vertices where it
@@ -394,6 +510,7 @@ impl Output {
         let Layout {
             shapes,
             body_shapes,
+            ..
         } = &self.layout;
         for (i, state) in frame.bodies.iter().enumerate() {
             let vertices = &shapes[body_shapes[i]].vertices;
@@ -413,68 +530,17 @@ impl Output {
         Ok(())
     }
 
+    /// `DIR/run.xmf`: four temporal collections over the output steps, all
+    /// reading `run.h5` (see the module doc).
     fn write_xdmf(&self) -> CliResult {
         let mut x = String::new();
         let _ = writeln!(x, r#"<?xml version="1.0" ?>"#);
         let _ = writeln!(x, r#"<Xdmf Version="3.0"><Domain>"#);
-        let _ = writeln!(
-            x,
-            r#"<Grid Name="surface" GridType="Collection" CollectionType="Temporal">"#
-        );
-        let (nt, np) = (self.triangles, self.points);
-        for &StepIndex { k, time: t, .. } in &self.steps {
-            let _ = writeln!(
-                x,
-                r#"<Grid Name="step{k}" GridType="Uniform"><Time Value="{t:e}"/>"#
-            );
-            let _ = writeln!(
-                x,
-                r#"<Topology TopologyType="Triangle" NumberOfElements="{nt}"><DataItem Dimensions="{nt} 3" NumberType="UInt" Precision="4" Format="HDF">run.h5:/surface/triangles</DataItem></Topology>"#
-            );
-            let _ = writeln!(
-                x,
-                r#"<Geometry GeometryType="XYZ"><DataItem Dimensions="{np} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/surface/points</DataItem></Geometry>"#
-            );
-            let _ = writeln!(
-                x,
-                r#"<Attribute Name="body" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{nt}" NumberType="UInt" Precision="4" Format="HDF">run.h5:/surface/body</DataItem></Attribute>"#
-            );
-            let _ = writeln!(x, "</Grid>");
-        }
-        let _ = writeln!(x, "</Grid>");
-        let _ = writeln!(
-            x,
-            r#"<Grid Name="contacts" GridType="Collection" CollectionType="Temporal">"#
-        );
-        for s in &self.steps {
-            let (k, nc) = (s.k, s.contacts);
-            let _ = writeln!(
-                x,
-                r#"<Grid Name="contacts{k}" GridType="Uniform"><Time Value="{:e}"/>"#,
-                s.time
-            );
-            let _ = writeln!(
-                x,
-                r#"<Topology TopologyType="Polyvertex" NumberOfElements="{nc}"/>"#
-            );
-            let item = |what: &str| {
-                format!(
-                    r#"<DataItem Dimensions="{nc} 3" NumberType="Float" Precision="8" Format="HDF">run.h5:/steps/{k}/contact_forces/{what}</DataItem>"#
-                )
-            };
-            let _ = writeln!(
-                x,
-                r#"<Geometry GeometryType="XYZ">{}</Geometry>"#,
-                item("points")
-            );
-            let _ = writeln!(
-                x,
-                r#"<Attribute Name="force" AttributeType="Vector" Center="Node">{}</Attribute>"#,
-                item("forces")
-            );
-            let _ = writeln!(x, "</Grid>");
-        }
-        let _ = writeln!(x, "</Grid></Domain></Xdmf>");
+        self.xdmf_collection(&mut x, "surface", |x, s| self.xdmf_surface(x, s));
+        self.xdmf_collection(&mut x, "particles", |x, s| self.xdmf_particles(x, s));
+        self.xdmf_collection(&mut x, "contacts", xdmf_contact_lines);
+        self.xdmf_collection(&mut x, "contact_points", xdmf_contact_points);
+        let _ = writeln!(x, "</Domain></Xdmf>");
         let path = self.dir.join("run.xmf");
         // Write beside and rename, so the index on disk is never half written.
         let tmp = self.dir.join("run.xmf.tmp");
@@ -482,6 +548,149 @@ impl Output {
             .and_then(|_| std::fs::rename(&tmp, &path))
             .map_err(|e| CliError::runtime(format!("{}: {e}", path.display())))
     }
+
+    /// One grid per output step, in a temporal collection named `name`.
+    fn xdmf_collection(&self, x: &mut String, name: &str, grid: impl Fn(&mut String, &StepIndex)) {
+        let _ = writeln!(
+            x,
+            r#"<Grid Name="{name}" GridType="Collection" CollectionType="Temporal">"#
+        );
+        for s in &self.steps {
+            let _ = writeln!(
+                x,
+                r#"<Grid Name="{name}{}" GridType="Uniform"><Time Value="{:e}"/>"#,
+                s.k, s.time
+            );
+            grid(x, s);
+            let _ = writeln!(x, "</Grid>");
+        }
+        let _ = writeln!(x, "</Grid>");
+    }
+
+    /// Every body's mesh: points per mesh vertex, cells coloured by body
+    /// and material.
+    fn xdmf_surface(&self, x: &mut String, s: &StepIndex) {
+        let (nt, np, k) = (self.triangles, self.points, s.k);
+        let _ = writeln!(
+            x,
+            r#"<Topology TopologyType="Triangle" NumberOfElements="{nt}">{}</Topology>"#,
+            item(&[nt, 3], "UInt", 4, "surface/triangles")
+        );
+        geometry(x, np, &format!("steps/{k}/surface/points"));
+        attribute(x, "body", "Cell", &[nt], "UInt", 4, "surface/body");
+        attribute(x, "material", "Cell", &[nt], "UInt", 4, "surface/material");
+    }
+
+    /// One point per body at its centre of mass.
+    fn xdmf_particles(&self, x: &mut String, s: &StepIndex) {
+        let (n, k) = (s.bodies, s.k);
+        let _ = writeln!(
+            x,
+            r#"<Topology TopologyType="Polyvertex" NumberOfElements="{n}"/>"#
+        );
+        geometry(x, n, &format!("steps/{k}/positions"));
+        let step = |what: &str| format!("steps/{k}/{what}");
+        attribute(x, "material", "Node", &[n], "UInt", 4, "bodies/material");
+        attribute(x, "mass", "Node", &[n], "Float", 8, "bodies/mass");
+        attribute(x, "obstacle", "Node", &[n], "UChar", 1, "bodies/obstacle");
+        for (name, what) in [
+            ("velocity", "velocities"),
+            ("angular_velocity", "angular_velocities"),
+        ] {
+            attribute(x, name, "Node", &[n, 3], "Float", 8, &step(what));
+        }
+        for (name, what) in [
+            ("speed", "speeds"),
+            ("kinetic_translation", "kinetic_translation"),
+            ("kinetic_rotation", "kinetic_rotation"),
+        ] {
+            attribute(x, name, "Node", &[n], "Float", 8, &step(what));
+        }
+        attribute(
+            x,
+            "coordination",
+            "Node",
+            &[n],
+            "UInt",
+            4,
+            &step("contacts"),
+        );
+    }
+}
+
+/// The contact network: a line per contact between the bodies it joins.
+fn xdmf_contact_lines(x: &mut String, s: &StepIndex) {
+    let (nc, k) = (s.contacts, s.k);
+    let c = |what: &str| format!("steps/{k}/contact_forces/{what}");
+    let _ = writeln!(
+        x,
+        r#"<Topology TopologyType="Polyline" NodesPerElement="2" NumberOfElements="{nc}">{}</Topology>"#,
+        item(&[nc, 2], "UInt", 4, &c("lines"))
+    );
+    geometry(x, 2 * nc, &c("line_points"));
+    attribute(
+        x,
+        "normal_force",
+        "Cell",
+        &[nc],
+        "Float",
+        8,
+        &c("normal_force_magnitudes"),
+    );
+    attribute(x, "overlap", "Cell", &[nc], "Float", 8, &c("overlaps"));
+    for (name, what) in [
+        ("normal_force_vector", "normal_forces"),
+        ("tangential_force", "tangential_forces"),
+        ("force", "forces"),
+    ] {
+        attribute(x, name, "Cell", &[nc, 3], "Float", 8, &c(what));
+    }
+}
+
+/// Each contact's point, with the force on its first body (glyphs show it).
+fn xdmf_contact_points(x: &mut String, s: &StepIndex) {
+    let (nc, k) = (s.contacts, s.k);
+    let c = |what: &str| format!("steps/{k}/contact_forces/{what}");
+    let _ = writeln!(
+        x,
+        r#"<Topology TopologyType="Polyvertex" NumberOfElements="{nc}"/>"#
+    );
+    geometry(x, nc, &c("points"));
+    attribute(x, "force", "Node", &[nc, 3], "Float", 8, &c("forces"));
+}
+
+/// An HDF5 data item of `run.h5`.
+fn item(dims: &[usize], kind: &str, precision: u8, path: &str) -> String {
+    let dims: Vec<String> = dims.iter().map(usize::to_string).collect();
+    format!(
+        r#"<DataItem Dimensions="{}" NumberType="{kind}" Precision="{precision}" Format="HDF">run.h5:/{path}</DataItem>"#,
+        dims.join(" ")
+    )
+}
+
+fn geometry(x: &mut String, points: usize, path: &str) {
+    let _ = writeln!(
+        x,
+        r#"<Geometry GeometryType="XYZ">{}</Geometry>"#,
+        item(&[points, 3], "Float", 8, path)
+    );
+}
+
+fn attribute(
+    x: &mut String,
+    name: &str,
+    center: &str,
+    dims: &[usize],
+    kind: &str,
+    precision: u8,
+    path: &str,
+) {
+    let kind_of = if dims.len() == 2 { "Vector" } else { "Scalar" };
+    let _ = writeln!(
+        x,
+        r#"<Attribute Name="{name}" AttributeType="{kind_of}" Center="{center}">{}</Attribute>"#,
+        item(dims, kind, precision, path)
+    );
 }
 
 /// Points per block of the surface written at once (as coordinates).
@@ -509,15 +718,59 @@ fn write_energies(g: &hdf5::Group, frame: &Frame) -> CliResult {
     Ok(())
 }
 
-/// The contacts of one output step; returns how many.
-fn write_contacts(g: &hdf5::Group, frame: &Frame) -> CliResult<usize> {
+/// The contacts of one output step; returns how many. Each is also a line
+/// of the contact network: from the first body's centre to the second's,
+/// an obstacle's end at the contact point instead (an obstacle's centre can
+/// lie anywhere).
+fn write_contacts(g: &hdf5::Group, frame: &Frame, obstacle: &[bool]) -> CliResult<usize> {
     let c = &frame.contacts;
     let nc = c.len();
     let group = g.create_group("contact_forces").map_err(h5err)?;
-    let points = Array2::from_shape_fn((nc, 3), |(r, k)| c[r].point[k]);
-    let f = Array2::from_shape_fn((nc, 3), |(r, k)| c[r].force()[k]);
+    let vectors =
+        |f: &dyn Fn(usize) -> glam::DVec3| Array2::from_shape_fn((nc, 3), |(r, k)| f(r)[k]);
+    let points = vectors(&|r| c[r].point);
+    let f = vectors(&|r| c[r].force());
+    let normal = vectors(&|r| c[r].normal_force);
+    let tangential = vectors(&|r| c[r].tangential_force);
+    let end = |r: usize, id: u32| match obstacle[id as usize] {
+        true => c[r].point,
+        false => frame.bodies[id as usize].x,
+    };
+    let ends = Array2::from_shape_fn((2 * nc, 3), |(r, k)| {
+        let contact = r / 2;
+        let id = if r % 2 == 0 {
+            c[contact].a
+        } else {
+            c[contact].b
+        };
+        end(contact, id)[k]
+    });
     let bodies = Array2::from_shape_fn((nc, 2), |(r, k)| [c[r].a, c[r].b][k]);
-    for (name, data) in [("points", &points), ("forces", &f)] {
+    let lines = Array2::from_shape_fn((nc, 2), |(r, k)| (2 * r + k) as u32);
+    group
+        .new_dataset_builder()
+        .with_data(&Array1::from_iter(
+            c.iter().map(|x| x.normal_force.length()),
+        ))
+        .create("normal_force_magnitudes")
+        .map_err(h5err)?;
+    group
+        .new_dataset_builder()
+        .with_data(&Array1::from_iter(c.iter().map(|x| x.depth)))
+        .create("overlaps")
+        .map_err(h5err)?;
+    group
+        .new_dataset_builder()
+        .with_data(&lines)
+        .create("lines")
+        .map_err(h5err)?;
+    for (name, data) in [
+        ("points", &points),
+        ("forces", &f),
+        ("normal_forces", &normal),
+        ("tangential_forces", &tangential),
+        ("line_points", &ends),
+    ] {
         group
             .new_dataset_builder()
             .with_data(data)

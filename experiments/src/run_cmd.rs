@@ -41,7 +41,7 @@ pub fn run(args: &RunArgs) -> CliResult {
         .map_err(|e| CliError::runtime(e.to_string()))?;
     let (mut sim, first) = start(args, &scene)?;
     let steps = steps_to_run(args, &scene, first)?;
-    let mut files = RunFiles::open(args, &sim)?;
+    let mut files = RunFiles::open(args, &scene, &sim)?;
     announce(args, &scene, steps);
     files.write_first(&sim)?;
     let stop = stop_on_signals()?;
@@ -91,7 +91,7 @@ pub(crate) fn steps_to_run(args: &RunArgs, scene: &Scene, first: u64) -> CliResu
     match args.steps {
         Some(n) => Ok(n),
         None if args.resume.is_none() || first < last => Ok(last.saturating_sub(first)),
-        None => Err(CliError::input(format!(
+        None => Err(CliError::finished(format!(
             "the checkpoint is at step {first}, the scene's end ({:e} s) at step {last}: \
              nothing left to run (--steps N runs N more)",
             scene.end_time
@@ -110,13 +110,13 @@ fn announce(args: &RunArgs, scene: &Scene, steps: u64) {
 
 /// The scene, its bodies and effects, the step and the steps to run.
 pub(crate) fn describe(args: &RunArgs, scene: &Scene, steps: u64) -> String {
-    let w = &scene.world;
+    let c = &scene.census;
     format!(
         "{}: {} particles ({} triangles), {} obstacles, effects: {}; dt {:e} s{}, {steps} steps",
         args.scene.display(),
-        w.dynamic_count(),
-        w.particle_triangles(),
-        w.bodies.len() - w.dynamic_count(),
+        c.particles(),
+        scene.particle_triangles(),
+        c.obstacles(),
         scene.effects.names().join(", "),
         scene.dt,
         scene
@@ -138,7 +138,7 @@ struct RunFiles {
 impl RunFiles {
     /// Resumed into the directory it was written to, the output goes on in
     /// the same file; a fresh run starts its own.
-    fn open(args: &RunArgs, sim: &Simulation) -> CliResult<RunFiles> {
+    fn open(args: &RunArgs, scene: &Scene, sim: &Simulation) -> CliResult<RunFiles> {
         let Some(dir) = &args.output else {
             return Ok(RunFiles {
                 out: None,
@@ -152,7 +152,7 @@ impl RunFiles {
             dir,
             args.resume.as_deref(),
             args.overwrite,
-            &crate::output::Layout::of(&sim.world),
+            &crate::output::Layout::of(scene),
             sim.world.time,
         )?;
         Ok(RunFiles {

@@ -13,7 +13,7 @@ use crate::output::{Layout, Output};
 use crate::run_cmd::{describe, refuse_crossings, refuse_overlaps_at_start, DEEP_STEPS};
 use dem::checkpoint::Checkpoint;
 use dem::frame::Frame;
-use dem::scene::Scene;
+use dem::scene::{Deal, Scene};
 use distributed::metrics::{imbalance, json_line};
 use distributed::{DistributedSimulation, Settings, Start, StepMetrics};
 use mpi::collective::SystemOperation;
@@ -80,7 +80,8 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     agree(comm, refuse_metrics_over(args))?;
     let mut scene = agree(
         comm,
-        Scene::load_with(&args.scene, &args.overrides).map_err(|e| CliError::input(e.to_string())),
+        Scene::load_dealt_with(&args.scene, &args.overrides, share(comm))
+            .map_err(|e| CliError::input(e.to_string())),
     )?;
     if me == 0 {
         for w in &scene.warnings {
@@ -109,10 +110,8 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         Some(c) => Start::Resume(c),
         None => Start::Fresh,
     };
-    // What rank 0 needs of the whole scene later, taken before the
-    // simulation takes the scene's bodies (no rank keeps them).
     let told = describe(args, &scene, steps);
-    let layout = (me == 0).then(|| Layout::of(&scene.world));
+    let layout = (me == 0).then(|| Layout::of(&scene));
     let dist = DistributedSimulation::new(comm, &mut scene, start_with, settings);
     let dist = agree(
         comm,
@@ -175,6 +174,14 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let secs = start.elapsed().as_secs_f64();
     summary(comm, args, &dist, &totals, steps, secs);
     Ok(())
+}
+
+/// The scene's particles this rank keeps from the start.
+fn share(comm: &SimpleCommunicator) -> Deal {
+    Deal {
+        rank: comm.rank() as u32,
+        ranks: comm.size() as u32,
+    }
 }
 
 /// A metrics file that exists is replaced only with --overwrite.

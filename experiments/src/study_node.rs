@@ -8,11 +8,11 @@ use crate::cli::{StudyArgs, StudyName};
 use crate::error::{CliError, CliResult};
 use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
 use crate::study_cmd::{finding, noise_floor, write, Group, Ran, Spec, Stat};
+use dem::distance::Schedule;
 use dem::scene::Scene;
 use std::fmt::Write as _;
 use std::path::Path;
 
-const SCHEDULES: [&str; 3] = ["static", "dynamic", "guided"];
 /// The two fallbacks of the hybrid kernel: the published one (the whole
 /// batch of a pair Newton did not certify) and only the failed pairs.
 const FALLBACKS: [(&str, &str); 2] = [("whole-batch", "false"), ("failed-pairs", "true")];
@@ -33,7 +33,7 @@ pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
             };
             let mut specs = Vec::new();
             for (fallback, failed_pairs) in FALLBACKS {
-                for schedule in SCHEDULES {
+                for &(_, schedule) in Schedule::ALL {
                     for &t in &threads {
                         specs.push(Spec {
                             label: format!("{schedule}-{fallback}-{t}"),

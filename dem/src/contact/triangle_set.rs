@@ -106,11 +106,13 @@ pub struct TriangleSet {
 /// Makes room for `n` elements in an emptied vector without amortised
 /// doubling: a rank's set grows by a few ghosts at a time, and doubling would
 /// hold up to twice the triangles it needs. An eighth of headroom keeps
-/// small growth from reallocating every time.
+/// small growth from reallocating every time. The old array is freed before
+/// the new one is taken, so that the two are never held at once.
 fn room_for<T>(v: &mut Vec<T>, n: usize) {
     debug_assert!(v.is_empty());
     if v.capacity() < n {
-        *v = Vec::with_capacity(n + n / 8);
+        *v = Vec::new();
+        v.reserve_exact(n + n / 8);
     }
 }
 
@@ -124,8 +126,10 @@ fn room_for<T>(v: &mut Vec<T>, n: usize) {
 #[repr(transparent)]
 struct Slot<T>(UnsafeCell<T>);
 
-// SAFETY: concurrent access is ordered by the groups' states (see `pass`).
-unsafe impl<T: Send> Sync for Slot<T> {}
+// SAFETY: concurrent access is ordered by the groups' states (see `pass`):
+// a slot is written by one thread while no other reads it, and then read
+// by many through `&T`, which needs `T: Sync` as well as `T: Send`.
+unsafe impl<T: Send + Sync> Sync for Slot<T> {}
 
 impl<T: Copy> Slot<T> {
     fn new(t: T) -> Slot<T> {

@@ -24,7 +24,6 @@ use rayon::prelude::*;
 
 /// Which computation answers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
     /// Exact: the nine edge-edge and six vertex-face closest points.
     Brute,
@@ -34,27 +33,11 @@ pub enum Method {
     Hybrid,
 }
 
-impl std::str::FromStr for Method {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "brute" => Ok(Method::Brute),
-            "penalty" => Ok(Method::Penalty),
-            "hybrid" => Ok(Method::Hybrid),
-            _ => Err(format!("unknown method `{s}` (brute, penalty, hybrid)")),
-        }
-    }
-}
-
-impl Method {
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Brute => "brute",
-            Method::Penalty => "penalty",
-            Method::Hybrid => "hybrid",
-        }
-    }
-}
+crate::named_enum!(
+    Method,
+    "method",
+    [(Brute, "brute"), (Penalty, "penalty"), (Hybrid, "hybrid")]
+);
 
 /// What the hybrid recomputes by brute force when a batch has uncertified pairs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -72,7 +55,6 @@ pub enum Fallback {
 /// into consecutive shares and spread over threads. Shares of the dynamic and
 /// guided schedules are taken in order, each by whichever thread is free.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Schedule {
     /// Equal shares, one per thread (OpenMP `schedule(static)`).
     Static,
@@ -88,17 +70,11 @@ pub enum Schedule {
     Guided,
 }
 
-impl std::str::FromStr for Schedule {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "static" => Ok(Schedule::Static),
-            "dynamic" => Ok(Schedule::Dynamic),
-            "guided" => Ok(Schedule::Guided),
-            _ => Err(format!("unknown schedule `{s}` (static, dynamic, guided)")),
-        }
-    }
-}
+crate::named_enum!(
+    Schedule,
+    "schedule",
+    [(Static, "static"), (Dynamic, "dynamic"), (Guided, "guided")]
+);
 
 /// Threading of a call to [`distance_many`]. It runs in the current rayon pool:
 /// install a pool of the wanted size around the call to choose the thread count.
@@ -108,16 +84,6 @@ pub struct Threading {
     /// Batches (body pairs, in contact detection) per share of the dynamic
     /// schedule, and the smallest share of the guided one.
     pub grain: usize,
-}
-
-impl Schedule {
-    pub fn name(self) -> &'static str {
-        match self {
-            Schedule::Static => "static",
-            Schedule::Dynamic => "dynamic",
-            Schedule::Guided => "guided",
-        }
-    }
 }
 
 impl Threading {

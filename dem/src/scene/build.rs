@@ -2,11 +2,12 @@
 //! bodies, the kernel's options, and the stable time step, each in its own
 //! function, in the order a later one needs an earlier one's result.
 
+use super::census::Run;
 use super::shapes::{check_motion, make_shape, placements, random_rotation, smallest_extent};
 use super::spec::{
     KernelSpec, MaterialSpec, ObstacleSpec, ParticleSpec, SceneFile, SimulationSpec,
 };
-use super::{positive, Ctx, Parallel, Scene, SceneError, MAX_PARTICLES, MAX_STEPS};
+use super::{positive, Census, Ctx, Deal, Parallel, Scene, SceneError, MAX_PARTICLES, MAX_STEPS};
 use crate::body::Body;
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
 use crate::effects::{ContactParams, Effects, KINDS};
@@ -27,14 +28,27 @@ use toml::Spanned;
 const MAX_ITERATIONS: usize = 255;
 pub const MAX_FINISH_ROUNDS: usize = 8;
 
-/// The bodies of a scene and, per body, the line that placed it.
+/// The bodies a scene keeps, and the census of all it places.
 struct Bodies {
     world: World,
-    lines: Vec<usize>,
+    census: Census,
+    deal: Deal,
     warnings: Vec<String>,
 }
 
-pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
+impl Bodies {
+    /// Keeps `body`, of id `id`, if it is the deal's.
+    fn keep(&mut self, id: u32, body: Body) {
+        if body.is_static() || self.deal.keeps(id) {
+            self.world.bodies.push(body);
+            if self.deal != Deal::WHOLE {
+                self.world.ids.push(id);
+            }
+        }
+    }
+}
+
+pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, SceneError> {
     let sim_span = spec.simulation.span();
     let sim = spec.simulation.into_inner();
     let (dt, end_time) = time_stepping(ctx, sim_span.clone(), &sim)?;
@@ -45,7 +59,8 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
             materials,
             ..World::default()
         },
-        lines: Vec::new(),
+        census: Census::default(),
+        deal,
         warnings: Vec::new(),
     };
     for p in &spec.particles {
@@ -54,7 +69,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
     for o in &spec.obstacles {
         add_obstacle(ctx, o, &mut bodies)?;
     }
-    if bodies.world.dynamic_count() == 0 {
+    if bodies.census.particles() == 0 {
         return ctx.err(0..0, "the scene has no particles");
     }
     let kernel = match spec.kernel {
@@ -63,7 +78,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
     };
     let stable_dt = effects
         .has::<ContactParams>()
-        .then(|| stable_step(&bodies.world));
+        .then(|| stable_step(&bodies.world.materials, &bodies.census));
     if let Some(h) = stable_dt.filter(|&h| dt > h) {
         let msg = format!(
             "simulation.dt = {dt:e} s is above the stable step {h:e} s \
@@ -91,7 +106,8 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile) -> Result<Scene, SceneError> {
         kernel,
         warnings: bodies.warnings,
         parallel,
-        body_lines: bodies.lines,
+        census: bodies.census,
+        deal,
         allow_deep_contacts: sim.allow_deep_contacts,
     })
 }
@@ -279,7 +295,7 @@ fn add_particles(
         radius,
         local.triangles.len(),
     )?;
-    if world.bodies.len() + positions.len() > MAX_PARTICLES {
+    if bodies.census.bodies() + positions.len() > MAX_PARTICLES {
         return ctx.err(
             span,
             format!("the scene places more than the {MAX_PARTICLES} particles a scene may"),
@@ -287,15 +303,16 @@ fn add_particles(
     }
     let shape = world.shapes.len();
     world.shapes.push(local);
+    let first = bodies.census.bodies() as u32;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed);
-    for pos in positions {
+    for (id, pos) in (first..).zip(&positions) {
         let q = orientation(ctx, span.clone(), p, &mut rng)?;
         let omega = DVec3::from_array(p.angular_velocity);
         let inertia_world = DMat3::from_quat(q) * props.inertia * DMat3::from_quat(q).transpose();
         let body = Body {
             shape,
             material: mat,
-            x: DVec3::from_array(pos),
+            x: DVec3::from_array(*pos),
             q,
             v: DVec3::from_array(p.velocity),
             l: inertia_world * omega,
@@ -313,9 +330,18 @@ fn add_particles(
             thickness,
             &mut bodies.warnings,
         )?;
-        world.bodies.push(body);
-        bodies.lines.push(ctx.line_of(span.start));
+        bodies.keep(id, body);
     }
+    let run = Run {
+        ids: first..first + positions.len() as u32,
+        shape,
+        material: mat,
+        mass: props.mass,
+        inv_inertia,
+        line: ctx.line_of(span.start),
+        fixed: None,
+    };
+    bodies.census.push(run);
     Ok(())
 }
 
@@ -357,10 +383,12 @@ fn add_obstacle(
         crate::integrate::exp_map(DVec3::from_array(r))
     });
     world.shapes.push(mesh);
-    world.bodies.push(Body {
+    let x = DVec3::from_array(o.position);
+    let id = bodies.census.bodies() as u32;
+    let body = Body {
         shape: world.shapes.len() - 1,
         material: mat,
-        x: DVec3::from_array(o.position),
+        x,
         q,
         v: DVec3::ZERO,
         l: DVec3::ZERO,
@@ -368,8 +396,17 @@ fn add_obstacle(
         mass: f64::INFINITY,
         inv_inertia_body: DMat3::ZERO,
         inertia_body: DMat3::ZERO,
+    };
+    bodies.census.push(Run {
+        ids: id..id + 1,
+        shape: body.shape,
+        material: mat,
+        mass: body.mass,
+        inv_inertia: DMat3::ZERO,
+        line: ctx.line_of(span.start),
+        fixed: Some((x, q)),
     });
-    bodies.lines.push(ctx.line_of(span.start));
+    bodies.keep(id, body);
     Ok(())
 }
 
@@ -459,14 +496,8 @@ fn penalty_params(k: &KernelSpec) -> Result<PenaltyParams, String> {
 /// pair of materials that can meet (springs in series) and the lightest
 /// reduced mass (half the lightest particle), h = (2/ω)(√(1 + ζ²) − ζ)
 /// with the largest damping ratio.
-fn stable_step(world: &World) -> f64 {
-    let materials = &world.materials;
-    let mut used_by_particles = vec![false; materials.len()];
-    let mut used = vec![false; materials.len()];
-    for b in &world.bodies {
-        used[b.material] = true;
-        used_by_particles[b.material] |= !b.is_static();
-    }
+fn stable_step(materials: &[Material], census: &Census) -> f64 {
+    let (used, used_by_particles) = census.materials_used(materials.len());
     let stiffness = |i: usize| materials[i].stiffness.unwrap_or(0.0);
     let mut k_max = 0.0f64;
     for i in (0..materials.len()).filter(|&i| used_by_particles[i]) {
@@ -480,13 +511,7 @@ fn stable_step(world: &World) -> f64 {
         .filter_map(|m| m.restitution)
         .map(damping_ratio)
         .fold(0.0, f64::max);
-    let m_min = world
-        .bodies
-        .iter()
-        .filter(|b| !b.is_static())
-        .map(|b| b.mass)
-        .fold(f64::INFINITY, f64::min);
-    let omega = (k_max / (0.5 * m_min)).sqrt();
+    let omega = (k_max / (0.5 * census.lightest())).sqrt();
     2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
 }
 

@@ -51,6 +51,7 @@
 //! ```
 
 mod build;
+pub mod census;
 mod shapes;
 mod spec;
 mod text;
@@ -60,6 +61,7 @@ pub use build::MAX_FINISH_ROUNDS;
 use crate::distance::Options;
 pub use crate::effects::Effects;
 use crate::world::World;
+pub use census::Census;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -112,8 +114,10 @@ pub struct Scene {
     /// Set when the step exceeds the stable one and the scene allowed it.
     pub warnings: Vec<String>,
     pub parallel: Parallel,
-    /// Per body, the line of the scene file that placed it (for messages).
-    pub body_lines: Vec<usize>,
+    /// The whole scene's bodies in brief, however few of them `world` holds.
+    pub census: Census,
+    /// Which of the scene's particles `world` holds.
+    pub deal: Deal,
     /// The scene allows bodies to overlap at the start and contacts to stay
     /// deeper than the halos (`simulation.allow_deep_contacts`).
     pub allow_deep_contacts: bool,
@@ -128,13 +132,56 @@ pub const MAX_STEPS: u64 = 1 << 40;
 /// ours holds.
 pub const MAX_PARTICLES: usize = 10_000_000;
 
+/// Which of a scene's particles a rank keeps when it loads the scene: the
+/// k-th particle (id k) goes to rank k mod `ranks`; every rank keeps every
+/// obstacle. [`Deal::WHOLE`] keeps everything.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Deal {
+    pub rank: u32,
+    pub ranks: u32,
+}
+
+impl Deal {
+    /// The whole scene, as one process runs it.
+    pub const WHOLE: Deal = Deal { rank: 0, ranks: 1 };
+
+    /// The rank particle `id` is dealt to.
+    pub fn rank_of(&self, id: u32) -> u32 {
+        id % self.ranks
+    }
+
+    pub fn keeps(&self, id: u32) -> bool {
+        self.rank_of(id) == self.rank
+    }
+}
+
 impl Scene {
     /// Where body `i` comes from, for messages: "body 3 (line 31)".
     pub fn body_name(&self, i: usize) -> String {
-        match self.body_lines.get(i) {
-            Some(&line) if line > 0 => format!("body {i} (line {line})"),
+        match self.census.run_of(i) {
+            Some(r) if r.line > 0 => format!("body {i} (line {})", r.line),
             _ => format!("body {i}"),
         }
+    }
+
+    /// A digest of what a run cannot change: `World::fingerprint` of the
+    /// whole scene, however much of it `world` holds. A world holding the
+    /// whole scene is digested as it stands (a program may have edited it
+    /// since it was loaded); a rank's share, from the census.
+    pub fn fingerprint(&self) -> u64 {
+        if self.deal == Deal::WHOLE {
+            return self.world.fingerprint();
+        }
+        let mut h = self.world.fingerprint_head();
+        self.census.hash_bodies(&mut h);
+        h.0
+    }
+
+    /// Triangles of all the scene's particles.
+    pub fn particle_triangles(&self) -> usize {
+        let shapes = &self.world.shapes;
+        self.census
+            .particle_triangles(|s| shapes[s].triangles.len())
     }
 }
 
@@ -167,15 +214,21 @@ impl Ctx<'_> {
 impl Scene {
     /// Reads and builds a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_dealt(path, Deal::WHOLE)
+    }
+
+    /// Reads a scene file, keeping only `deal`'s particles.
+    pub fn load_dealt(path: &Path, deal: Deal) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {
             file: path.display().to_string(),
             line: 0,
             cause: format!("cannot read the scene: {e}"),
         })?;
-        Scene::parse(
+        Scene::parse_dealt(
             &text,
             &path.display().to_string(),
             path.parent().unwrap_or(Path::new(".")),
+            deal,
         )
     }
 
@@ -184,7 +237,16 @@ impl Scene {
     /// `tridem run --set kernel.schedule=dynamic` does. The file is checked
     /// as written first, so its own errors name its lines.
     pub fn load_with(path: &Path, overrides: &[String]) -> Result<Scene, SceneError> {
-        let scene = Scene::load(path)?;
+        Scene::load_dealt_with(path, overrides, Deal::WHOLE)
+    }
+
+    /// [`Scene::load_with`], keeping only `deal`'s particles.
+    pub fn load_dealt_with(
+        path: &Path,
+        overrides: &[String],
+        deal: Deal,
+    ) -> Result<Scene, SceneError> {
+        let scene = Scene::load_dealt(path, deal)?;
         if overrides.is_empty() {
             return Ok(scene);
         }
@@ -202,13 +264,23 @@ impl Scene {
             text::set_override(&mut table, o).map_err(err)?;
         }
         let text = toml::to_string(&table).map_err(|e| err(e.to_string()))?;
-        Scene::parse(&text, &file, path.parent().unwrap_or(Path::new(".")))
+        Scene::parse_dealt(&text, &file, path.parent().unwrap_or(Path::new(".")), deal)
             .map_err(|e| err(e.cause))
     }
 
     /// Builds a scene from TOML text; `file` names it in errors and `dir`
     /// resolves relative mesh paths.
     pub fn parse(text: &str, file: &str, dir: &Path) -> Result<Scene, SceneError> {
+        Scene::parse_dealt(text, file, dir, Deal::WHOLE)
+    }
+
+    /// [`Scene::parse`], keeping only `deal`'s particles.
+    pub fn parse_dealt(
+        text: &str,
+        file: &str,
+        dir: &Path,
+        deal: Deal,
+    ) -> Result<Scene, SceneError> {
         let ctx = Ctx {
             file: file.to_string(),
             text,
@@ -220,7 +292,7 @@ impl Scene {
             cause: e.message().to_string(),
         })?;
         text::refuse_non_finite(&ctx)?;
-        build::build(&ctx, spec)
+        build::build(&ctx, spec, deal)
     }
 }
 

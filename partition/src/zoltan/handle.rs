@@ -1,6 +1,6 @@
 //! An owned Zoltan_Struct.
 
-use super::library::{initialize, ZoltanError};
+use super::library::{initialize_on, ZoltanError};
 use crate::{Aabb, Item};
 use mpi::raw::AsRaw;
 use mpi::topology::SimpleCommunicator;
@@ -197,7 +197,7 @@ impl<'c> Zoltan<'c> {
     /// previous partition (see [`Zoltan::reuse`]).
     pub fn new(comm: &'c SimpleCommunicator, method: Method) -> Result<Self, ZoltanError> {
         use mpi::traits::Communicator;
-        initialize()?;
+        initialize_on(comm)?;
         // SAFETY: the communicator is valid for 'c, which the handle cannot outlive.
         let zz = unsafe { z::Zoltan_Create(comm.as_raw()) };
         if zz.is_null() {

@@ -30,13 +30,26 @@ impl std::fmt::Display for ZoltanVersion {
     }
 }
 
-/// Initialises Zoltan once per process (MPI must already be initialised) and
-/// checks that the library's global id type has the width the bindings assume.
-pub fn initialize() -> Result<ZoltanVersion, ZoltanError> {
+/// Initialises Zoltan once per process and checks that the library's global
+/// id type has the width the bindings assume. Zoltan_Initialize needs MPI
+/// initialised: the universe is the proof that it is.
+pub fn initialize(_mpi: &mpi::environment::Universe) -> Result<ZoltanVersion, ZoltanError> {
+    init_once()
+}
+
+/// [`initialize`], with a communicator as the proof that MPI is initialised.
+pub(crate) fn initialize_on(
+    _comm: &mpi::topology::SimpleCommunicator,
+) -> Result<ZoltanVersion, ZoltanError> {
+    init_once()
+}
+
+fn init_once() -> Result<ZoltanVersion, ZoltanError> {
     static INIT: OnceLock<Result<ZoltanVersion, ZoltanError>> = OnceLock::new();
     INIT.get_or_init(|| {
         let mut version = 0f32;
-        // SAFETY: argc = 0 with a null argv is allowed when MPI is already initialised.
+        // SAFETY: argc = 0 with a null argv is allowed when MPI is already
+        // initialised, which both callers hold a proof of.
         let rc = unsafe { zoltan_sys::Zoltan_Initialize(0, std::ptr::null_mut(), &mut version) };
         if rc != zoltan_sys::ZOLTAN_OK {
             return Err(ZoltanError::Initialize(rc));

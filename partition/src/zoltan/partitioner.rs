@@ -61,11 +61,12 @@ impl<'c> ZoltanPartitioner<'c> {
 
 impl Partitioner for ZoltanPartitioner<'_> {
     fn name(&self) -> &'static str {
-        match self.method {
-            Method::Rcb => "zoltan-rcb",
-            Method::Rib => "zoltan-rib",
-            Method::Hsfc => "zoltan-hsfc",
-        }
+        let backend = match self.method {
+            Method::Rcb => crate::Backend::ZoltanRcb,
+            Method::Rib => crate::Backend::ZoltanRib,
+            Method::Hsfc => crate::Backend::ZoltanHsfc,
+        };
+        backend.name()
     }
 
     fn partition(

@@ -30,6 +30,10 @@ use glam::DVec3;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+/// Spins of a thread waiting for another to fill a group before it yields
+/// its core: a fill takes about a microsecond, a few hundred spins.
+const SPINS_BEFORE_YIELD: u32 = 1000;
+
 /// One detection pass's view of a set (see the module doc). Not `Debug`:
 /// printing the set would read slots that other threads may be filling.
 #[derive(Clone, Copy)]
@@ -97,6 +101,7 @@ impl<'p> PassSet<'p> {
         let Some(state) = self.set.fresh.0.get(g) else {
             return filled;
         };
+        let mut spins = 0u32;
         loop {
             // Load before trying to claim: most calls find the group current,
             // and a compare-exchange takes the cache line exclusively even when
@@ -112,8 +117,15 @@ impl<'p> PassSet<'p> {
                         break;
                     }
                 }
-                // Another task is filling it: a microsecond or so.
-                _ => std::hint::spin_loop(),
+                // Another task is filling it: a microsecond or so, unless
+                // its thread lost its core (threads or ranks beyond the
+                // cores): then give the core up rather than spin out the
+                // time slice.
+                _ if spins < SPINS_BEFORE_YIELD => {
+                    spins += 1;
+                    std::hint::spin_loop();
+                }
+                _ => std::thread::yield_now(),
             }
         }
         self.write_group(g, world, vertices);

@@ -1,0 +1,304 @@
+//! What `run.h5` and `run.xmf` hold, checked against the states they are
+//! made from and against values computed here from the scene: the
+//! particles' derived fields, the contact network, the surface's materials,
+//! the XDMF index's references, and `tridem plot`'s energy books.
+mod common;
+
+use common::{scene, tridem};
+use dem::mesh::{MassProperties, TriMesh};
+use dem::scene::Scene;
+use glam::{DQuat, DVec3};
+use ndarray::{Array1, Array2};
+
+fn temp(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("tridem-output-{name}-{}", std::process::id()))
+}
+
+/// The hopper, 4,000 steps: grains on the funnel, in contact.
+fn hopper_run(name: &str) -> std::path::PathBuf {
+    let dir = temp(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    let (code, _, err) = tridem(&[
+        "run",
+        &scene("hopper.toml"),
+        "--steps",
+        "4000",
+        "--output",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    dir
+}
+
+fn vec3(a: &Array2<f64>, i: usize) -> DVec3 {
+    DVec3::new(a[[i, 0]], a[[i, 1]], a[[i, 2]])
+}
+
+fn read2(g: &hdf5::Group, name: &str) -> Array2<f64> {
+    g.dataset(name).unwrap().read_2d().unwrap()
+}
+
+fn read1<T: hdf5::H5Type>(g: &hdf5::Group, name: &str) -> Array1<T> {
+    g.dataset(name).unwrap().read_1d().unwrap()
+}
+
+fn close(a: f64, b: f64, scale: f64) -> bool {
+    (a - b).abs() <= 1e-12 * scale.max(f64::MIN_POSITIVE)
+}
+
+/// The particles' fields: speed = |v|, kinetic energies from the scene's
+/// masses and from inertia tensors computed here from the written meshes,
+/// angular velocity from the angular momentum, coordination = the
+/// contacts each body appears in, and the materials of bodies and surface
+/// cells as the scene assigns them.
+#[test]
+fn particle_fields_follow_from_the_states_and_the_scene() {
+    let dir = hopper_run("particles");
+    let s = Scene::load(std::path::Path::new(&scene("hopper.toml"))).unwrap();
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let root = f.group("/").unwrap();
+    let material: Array1<u32> = read1(&root, "bodies/material");
+    let mass: Array1<f64> = read1(&root, "bodies/mass");
+    let obstacle: Array1<u8> = read1(&root, "bodies/obstacle");
+    let steps = f.group("steps").unwrap();
+    let last = steps.len() - 1;
+    let mut in_contact = 0;
+    for k in [0, last] {
+        let g = steps.group(&k.to_string()).unwrap();
+        let (v, l) = (read2(&g, "velocities"), read2(&g, "angular_momenta"));
+        let q = read2(&g, "orientations");
+        let w = read2(&g, "angular_velocities");
+        let speed: Array1<f64> = read1(&g, "speeds");
+        let kt: Array1<f64> = read1(&g, "kinetic_translation");
+        let kr: Array1<f64> = read1(&g, "kinetic_rotation");
+        let coordination: Array1<u32> = read1(&g, "contacts");
+        let pairs: Array2<u32> = g
+            .dataset("contact_forces/bodies")
+            .unwrap()
+            .read_2d()
+            .unwrap();
+        let mut counted = vec![0u32; v.nrows()];
+        for p in pairs.rows() {
+            counted[p[0] as usize] += 1;
+            counted[p[1] as usize] += 1;
+        }
+        assert_eq!(coordination.to_vec(), counted, "step {k}");
+        in_contact += counted.iter().filter(|&&c| c > 0).count();
+        for (i, b) in s.world.bodies.iter().enumerate() {
+            assert_eq!(material[i] as usize, b.material);
+            assert_eq!(obstacle[i] == 1, b.is_static());
+            if b.is_static() {
+                assert_eq!((mass[i], speed[i], kt[i], kr[i]), (0.0, 0.0, 0.0, 0.0));
+                continue;
+            }
+            assert_eq!(mass[i], b.mass);
+            let vi = vec3(&v, i);
+            assert!(
+                close(speed[i], vi.length(), vi.length()),
+                "speed of body {i}"
+            );
+            let e = 0.5 * b.mass * vi.length_squared();
+            assert!(
+                close(kt[i], e, e),
+                "kinetic energy of body {i}: {} vs {e}",
+                kt[i]
+            );
+            // The inertia tensor from the mesh as written (body frame,
+            // centred on the centre of mass) and the material's density.
+            let shape = f.group(&format!("shapes/{}", b.shape)).unwrap();
+            let vertices = read2(&shape, "vertices");
+            let triangles: Array2<u32> = shape.dataset("triangles").unwrap().read_2d().unwrap();
+            let mesh = TriMesh {
+                vertices: (0..vertices.nrows()).map(|r| vec3(&vertices, r)).collect(),
+                triangles: triangles
+                    .rows()
+                    .into_iter()
+                    .map(|t| [t[0], t[1], t[2]])
+                    .collect(),
+            };
+            let inertia = MassProperties::of(&mesh, s.world.materials[b.material].density).inertia;
+            let qi = DQuat::from_xyzw(q[[i, 0]], q[[i, 1]], q[[i, 2]], q[[i, 3]]);
+            let li = vec3(&l, i);
+            let omega = qi * (inertia.inverse() * (qi.inverse() * li));
+            let scale = omega.length() + 1e-300;
+            assert!(
+                (vec3(&w, i) - omega).length() <= 1e-9 * scale,
+                "angular velocity of body {i}: {:?} vs {omega:?}",
+                vec3(&w, i)
+            );
+            let e = 0.5 * li.dot(omega);
+            assert!(
+                (kr[i] - e).abs() <= 1e-9 * e.abs().max(1e-300),
+                "rotation energy of body {i}"
+            );
+        }
+    }
+    assert!(
+        in_contact > 0,
+        "no body in contact: the coordination check proved nothing"
+    );
+    // Each surface cell's material is its body's.
+    let body: Array1<u32> = read1(&root, "surface/body");
+    let cell: Array1<u32> = read1(&root, "surface/material");
+    for (t, &b) in body.iter().enumerate() {
+        assert_eq!(cell[t], material[b as usize], "triangle {t}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The contact network: a line per contact from body centre to body centre
+/// (the contact point for an obstacle's end), and forces that add up.
+#[test]
+fn contact_lines_join_the_bodies_in_contact() {
+    let dir = hopper_run("contacts");
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let obstacle: Array1<u8> = f.dataset("bodies/obstacle").unwrap().read_1d().unwrap();
+    let steps = f.group("steps").unwrap();
+    let g = steps.group(&(steps.len() - 1).to_string()).unwrap();
+    let x = read2(&g, "positions");
+    let c = g.group("contact_forces").unwrap();
+    let pairs: Array2<u32> = c.dataset("bodies").unwrap().read_2d().unwrap();
+    let lines: Array2<u32> = c.dataset("lines").unwrap().read_2d().unwrap();
+    let ends = read2(&c, "line_points");
+    let (point, force) = (read2(&c, "points"), read2(&c, "forces"));
+    let (normal, tangential) = (read2(&c, "normal_forces"), read2(&c, "tangential_forces"));
+    let magnitude: Array1<f64> = read1(&c, "normal_force_magnitudes");
+    let overlap: Array1<f64> = read1(&c, "overlaps");
+    assert!(pairs.nrows() > 0, "no contacts at the last step");
+    for r in 0..pairs.nrows() {
+        for (side, &id) in pairs.row(r).iter().enumerate() {
+            let end = vec3(&ends, lines[[r, side]] as usize);
+            let expected = if obstacle[id as usize] == 1 {
+                vec3(&point, r)
+            } else {
+                vec3(&x, id as usize)
+            };
+            assert_eq!(end, expected, "contact {r}, end {side}");
+        }
+        let n = vec3(&normal, r);
+        assert!(close(magnitude[r], n.length(), n.length()));
+        assert_eq!(vec3(&force, r), n + vec3(&tangential, r));
+        assert!(overlap[r] > 0.0);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Every dataset `run.xmf` names exists in `run.h5` with the dimensions the
+/// index states; and the four collections each have a grid per step.
+#[test]
+fn the_xdmf_index_names_only_what_the_file_holds() {
+    let dir = hopper_run("xdmf");
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
+    let mut items = 0;
+    for piece in xmf.split("<DataItem ").skip(1) {
+        let dims = piece
+            .split("Dimensions=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap();
+        let dims: Vec<usize> = dims.split(' ').map(|d| d.parse().unwrap()).collect();
+        let path = piece
+            .split("run.h5:")
+            .nth(1)
+            .unwrap()
+            .split('<')
+            .next()
+            .unwrap();
+        let shape = f
+            .dataset(path)
+            .unwrap_or_else(|e| panic!("{path}: {e}"))
+            .shape();
+        assert_eq!(shape, dims, "{path}");
+        items += 1;
+    }
+    let steps = f.group("steps").unwrap().len() as usize;
+    for grid in ["surface", "particles", "contacts", "contact_points"] {
+        let name = format!("<Grid Name=\"{grid}\" GridType=\"Collection\"");
+        assert!(xmf.contains(&name), "no {grid} collection");
+        let per_step = (0..steps)
+            .filter(|k| xmf.contains(&format!("<Grid Name=\"{grid}{k}\"")))
+            .count();
+        assert_eq!(per_step, steps, "{grid}");
+    }
+    assert!(items > 20 * steps, "{items} data items");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `tridem plot DIR --energy` draws the books; their plotted sum stays
+/// within 1% of the largest kinetic energy of the run, the tolerance of the
+/// energy books' own test, on a collision resolved in many steps (the two
+/// particles at dt = 1e-5 s; at coarser steps the books close less well,
+/// `scripts/energy-table.sh`).
+#[test]
+fn the_plotted_energy_books_add_up_to_a_constant() {
+    let dir = temp("plot");
+    let _ = std::fs::remove_dir_all(&dir);
+    let (code, _, err) = tridem(&[
+        "run",
+        &scene("two-particles.toml"),
+        "--set",
+        "simulation.dt=1e-5",
+        "--set",
+        "simulation.output_every=100",
+        "--steps",
+        "5000",
+        "--output",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let d = dir.to_str().unwrap();
+    let (code, _, err) = tridem(&["plot", d, "--energy", "--series", "contacts"]);
+    assert_eq!(code, 0, "{err}");
+    for file in [
+        "energy.svg",
+        "energy.png",
+        "series-contacts.svg",
+        "series-contacts.png",
+    ] {
+        let n = std::fs::metadata(dir.join(file)).map_or(0, |m| m.len());
+        assert!(n > 1000, "{file}: {n} bytes");
+    }
+    let csv = std::fs::read_to_string(dir.join("energy.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert!(rows.len() >= 3);
+    let (total, kt, kr) = (
+        col("total"),
+        col("kinetic_translation"),
+        col("kinetic_rotation"),
+    );
+    let kinetic = rows.iter().map(|r| r[kt] + r[kr]).fold(0.0, f64::max);
+    assert!(kinetic > 0.0);
+    for r in &rows {
+        let sum: f64 = r[1..]
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| i + 1 != total)
+            .map(|(_, x)| x)
+            .sum();
+        assert!(
+            (sum - r[total]).abs() <= 1e-9 * kinetic,
+            "total is not the sum of the books"
+        );
+        assert!(
+            (r[total] - rows[0][total]).abs() <= 0.01 * kinetic,
+            "books drift: {r:?}"
+        );
+    }
+    let (code, _, err) = tridem(&["plot", d, "--series", "no-such"]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("no series `no-such`") && err.contains("total"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
