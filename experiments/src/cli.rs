@@ -81,6 +81,14 @@ pub enum Command {
         tridem plot out/hopper --series contacts --series kinetic_translation\n  \
         tridem plot out/hopper --list")]
     Plot(PlotArgs),
+    /// A picture (PNG) of an output step of a run (DIR/run.h5): the
+    /// particles coloured by a field, the obstacles translucent, and with
+    /// --contacts the contact network (line width by normal force).
+    #[command(after_help = "Examples:\n  \
+        tridem render out/hopper\n  \
+        tridem render out/hopper --step 3 --color-by force --contacts --output hopper.png\n  \
+        tridem render out/hopper --all --output out/hopper/frames")]
+    Render(RenderArgs),
     /// A study on real runs of a scene: repartition frequency, partitioners,
     /// the ghost exchange (under mpirun), thread scheduling, or what kernel
     /// accuracy costs; metrics, a summary CSV, figures (SVG and PNG) and a table.
@@ -218,6 +226,64 @@ pub struct PlotArgs {
     /// Print the names of the run's per-step scalars, one per line.
     #[arg(long, exclusive = true)]
     pub list: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A run's output directory (`tridem run --output DIR`).
+    pub dir: PathBuf,
+    /// The output step to draw (default: the last).
+    #[arg(long, conflicts_with = "all")]
+    pub step: Option<usize>,
+    /// Every output step, one PNG each.
+    #[arg(long)]
+    pub all: bool,
+    /// What colours the particles.
+    #[arg(long, value_enum, default_value = "speed")]
+    pub color_by: ColourBy,
+    /// Where the camera looks from.
+    #[arg(long, value_enum, default_value = "iso")]
+    pub view: View,
+    /// Draw the contact network.
+    #[arg(long)]
+    pub contacts: bool,
+    /// Frame the particles (obstacles may reach out of the picture) or
+    /// everything.
+    #[arg(long)]
+    pub whole_scene: bool,
+    /// The PNG (one step) or the directory of PNGs (default: DIR/render-step-K.png).
+    #[arg(long)]
+    pub output: Option<PathBuf>,
+    #[arg(long, default_value_t = 1200, value_parser = clap::value_parser!(u32).range(64..=8192))]
+    pub width: u32,
+    #[arg(long, default_value_t = 900, value_parser = clap::value_parser!(u32).range(64..=8192))]
+    pub height: u32,
+}
+
+/// What colours the particles of `tridem render`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColourBy {
+    /// |v| (m/s), from the slowest particle to the fastest.
+    Speed,
+    /// A colour per body.
+    Body,
+    /// A colour per material.
+    Material,
+    /// The sum of the normal forces of the particle's contacts (N).
+    Force,
+}
+
+/// Where `tridem render`'s camera looks from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum View {
+    /// From above, in front and to the side.
+    Iso,
+    /// Along +y.
+    Front,
+    /// Along -x.
+    Side,
+    /// Down.
+    Top,
 }
 
 #[derive(Args, Debug)]

@@ -14,6 +14,8 @@ mod partition_cmd;
 mod pingpong;
 mod plot;
 mod plot_cmd;
+mod raster;
+mod render_cmd;
 mod run_cmd;
 mod run_mpi;
 mod run_summary;
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
         cli::Command::Plot(args) => plot_cmd::run(&args),
+        cli::Command::Render(args) => render_cmd::run(&args),
         cli::Command::Study(args) => study_cmd::run(&args),
     };
     match result {

@@ -10,7 +10,7 @@ use std::path::Path;
 
 type Res = Result<(), Box<dyn Error>>;
 
-fn register_font() {
+pub(crate) fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
         let font: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");

@@ -302,3 +302,52 @@ fn the_plotted_energy_books_add_up_to_a_constant() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `tridem render DIR` writes a PNG of the asked size, with a picture in it
+/// (a blank one compresses to a few kilobytes), for one step or all; a
+/// step the run does not have is refused.
+#[test]
+fn render_draws_a_picture_of_a_step() {
+    let dir = hopper_run("render");
+    let d = dir.to_str().unwrap();
+    let png = dir.join("picture.png");
+    let (code, _, err) = tridem(&[
+        "render",
+        d,
+        "--contacts",
+        "--color-by",
+        "force",
+        "--width",
+        "640",
+        "--height",
+        "480",
+        "--output",
+        png.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[1..4], b"PNG");
+    let be = |at: usize| u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap());
+    assert_eq!((be(16), be(20)), (640, 480), "IHDR width and height");
+    assert!(
+        bytes.len() > 20_000,
+        "{} bytes: a blank picture?",
+        bytes.len()
+    );
+    let frames = dir.join("frames");
+    let (code, _, err) = tridem(&["render", d, "--all", "--output", frames.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let steps = hdf5::File::open(dir.join("run.h5"))
+        .unwrap()
+        .group("steps")
+        .unwrap()
+        .len();
+    assert_eq!(std::fs::read_dir(&frames).unwrap().count() as u64, steps);
+    let (code, _, err) = tridem(&["render", d, "--step", "99"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--step 99") && err.contains("output steps 0 to"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
