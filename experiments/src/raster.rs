@@ -101,20 +101,8 @@ impl Picture {
             return;
         }
         let (w, h) = (self.size.0 as i64, self.size.1 as i64);
-        let x0 = (p.iter().map(|q| q.0).fold(f64::INFINITY, f64::min).floor() as i64).max(0);
-        let x1 = (p
-            .iter()
-            .map(|q| q.0)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as i64)
-            .min(w - 1);
-        let y0 = (p.iter().map(|q| q.1).fold(f64::INFINITY, f64::min).floor() as i64).max(0);
-        let y1 = (p
-            .iter()
-            .map(|q| q.1)
-            .fold(f64::NEG_INFINITY, f64::max)
-            .ceil() as i64)
-            .min(h - 1);
+        let (x0, x1) = pixel_span([p[0].0, p[1].0, p[2].0], w);
+        let (y0, y1) = pixel_span([p[0].1, p[1].1, p[2].1], h);
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
@@ -171,6 +159,13 @@ impl Picture {
     pub fn at(&self, x: u32, y: u32) -> [f64; 3] {
         self.rgb[(y * self.size.0 + x) as usize]
     }
+}
+
+/// The pixels from the least to the most of `c`, within 0..n.
+fn pixel_span(c: [f64; 3], n: i64) -> (i64, i64) {
+    let lo = c.iter().copied().fold(f64::INFINITY, f64::min).floor() as i64;
+    let hi = c.iter().copied().fold(f64::NEG_INFINITY, f64::max).ceil() as i64;
+    (lo.max(0), hi.min(n - 1))
 }
 
 /// A colour for `t` in [0, 1] on a perceptually ordered scale (viridis'
