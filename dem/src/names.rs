@@ -55,3 +55,15 @@ macro_rules! named_enum {
         }
     };
 }
+
+/// Reads a named value (see [`named_enum!`]) from a scene's string, for
+/// `#[serde(deserialize_with = ...)]`: an unknown name is refused with the
+/// list of names.
+pub(crate) fn by_name<'de, D, T>(d: D) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: std::str::FromStr<Err = String>,
+{
+    let s = <String as serde::Deserialize>::deserialize(d)?;
+    s.parse().map_err(serde::de::Error::custom)
+}

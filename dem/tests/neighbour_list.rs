@@ -1,9 +1,12 @@
 //! The contact effect's neighbour list (a skin): the broad phase runs only
 //! when some body may have left its padded box, yet every step examines the
 //! same body pairs, finds the same contacts and gives the same motion, to the
-//! bit, as a broad phase in every step.
+//! bit, as a broad phase in every step. (How many triangle pairs reach the
+//! kernel may differ: the hull test starts from the direction that last
+//! separated a listed pair, and a list rebuilt forgets it.)
 mod common;
 
+use dem::contact::Culling;
 use dem::effects::ContactParams;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
@@ -16,15 +19,18 @@ fn hopper() -> Scene {
 
 /// Runs the hopper with the given skin; per step, the detection counts and
 /// every body's position and angular momentum bits.
-fn run(scene: &Scene, skin: f64, steps: usize) -> (Vec<[u64; 4]>, Vec<Vec<u64>>, u64) {
+fn run(scene: &Scene, skin: f64, steps: usize) -> (Vec<[u64; 2]>, Vec<Vec<u64>>, u64) {
     let mut scene = scene.clone();
-    scene.effects.set(ContactParams { skin });
+    scene.effects.set(ContactParams {
+        skin,
+        culling: Culling::default(),
+    });
     let mut sim = Simulation::new(&scene);
     let (mut counts, mut states) = (Vec::new(), Vec::new());
     for _ in 0..steps {
         sim.step();
         let d = sim.last_stats().detection;
-        counts.push([d.body_pairs, d.triangle_pairs, d.contacts, d.fallback_pairs]);
+        counts.push([d.body_pairs, d.contacts]);
         states.push(common::motion_bits(&sim.world));
     }
     (counts, states, sim.totals.detection.broad_phases)
@@ -42,7 +48,7 @@ fn a_skin_changes_how_often_the_broad_phase_runs_and_nothing_else() {
         "without a skin: one broad phase per step"
     );
     assert!(
-        counts.iter().any(|c| c[2] > 0),
+        counts.iter().any(|c| c[1] > 0),
         "a test with contacts to find"
     );
     // A skin small enough to rebuild often, and one that rebuilds rarely.
@@ -70,7 +76,10 @@ fn a_skin_changes_how_often_the_broad_phase_runs_and_nothing_else() {
 #[test]
 fn bodies_moved_by_hand_are_followed_after_forget_motion() {
     let mut scene = hopper();
-    scene.effects.set(ContactParams { skin: 2e-3 });
+    scene.effects.set(ContactParams {
+        skin: 2e-3,
+        culling: Culling::default(),
+    });
     let mut sim = Simulation::new(&scene);
     for _ in 0..10 {
         sim.step();

@@ -55,7 +55,9 @@ use dem::body::Body;
 use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
 use dem::contact::{Bounds, Contact, Detector, Role, Share};
 use dem::distance::Options;
-use dem::effects::{Effect, ForceTerm, Forces, RotationParams, StepContext, StepStats};
+use dem::effects::{
+    ContactParams, Effect, ForceTerm, Forces, RotationParams, StepContext, StepStats,
+};
 use dem::frame::{EnergyBooks, Frame};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
@@ -228,7 +230,9 @@ impl<'c> DistributedSimulation<'c> {
             shape_radius: shape_radii(world),
             kernel: scene.kernel,
             detector: {
-                let mut d = Detector::with_skin(settings.skin);
+                let culling = scene.effects.get::<ContactParams>().map(|c| c.culling);
+                let mut d =
+                    Detector::with_skin(settings.skin).with_culling(culling.unwrap_or_default());
                 d.count_work();
                 d
             },

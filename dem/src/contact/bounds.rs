@@ -62,6 +62,14 @@ impl Bounds {
         }
     }
 
+    /// The box common to both (empty if they do not overlap).
+    pub fn intersection(&self, o: &Bounds) -> Bounds {
+        Bounds {
+            lo: self.lo.max(o.lo),
+            hi: self.hi.min(o.hi),
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.lo.cmpgt(self.hi).any()
     }

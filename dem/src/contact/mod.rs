@@ -45,12 +45,14 @@
 mod bounds;
 mod broad_phase;
 pub mod features;
+mod separation;
+mod sweep;
 mod triangle_set;
 
 pub use bounds::Bounds;
 pub use features::{Contact, FeatureKey, FeatureKind, WeightGradient};
 pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, TriangleSet};
-use triangle_set::{PassPairs, PassSet};
+use triangle_set::{Part, PassPairs, PassSet};
 
 use crate::distance::{distance_many_serial, Closest, Counts, Options, PenaltyStats, Triangle};
 use crate::mesh::Features;
@@ -108,6 +110,24 @@ pub enum Share {
     Ghost = 1,
 }
 
+/// How the triangle pairs of a body pair are chosen for the kernel. Both
+/// give the same contacts (no pair within reach is ever left out); they
+/// differ in how many pairs they examine and what that costs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Culling {
+    /// The bodies' hulls first ([`separation`]): a body pair whose hulls are
+    /// farther apart than its reach is done. Then the triangles near the
+    /// other body's box, paired by a sweep over their boxes when there are
+    /// many ([`sweep`]): O(n + m) per body pair rather than O(n · m).
+    #[default]
+    Hulls,
+    /// The triangles near the other body's box, each of one body's against
+    /// each of the other's: O(n · m) per body pair, cheap for small meshes.
+    Boxes,
+}
+
+crate::named_enum!(Culling, "culling", [(Hulls, "hulls"), (Boxes, "boxes")]);
+
 /// Pieces a share's pairs are examined in when messages are in flight
 /// meanwhile (see [`Detector::detect_share`]): between pieces, the caller
 /// lets them move.
@@ -117,6 +137,9 @@ const PROGRESS_PIECES: usize = 8;
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct DetectionStats {
     pub body_pairs: u64,
+    /// Body pairs among `body_pairs` whose convex hulls are farther apart
+    /// than their reach: no triangle pair of theirs was examined.
+    pub hulls_apart: u64,
     pub triangle_pairs: u64,
     pub fallback_pairs: u64,
     pub contacts: u64,
@@ -138,6 +161,7 @@ pub struct DetectionStats {
 impl std::ops::AddAssign for DetectionStats {
     fn add_assign(&mut self, o: DetectionStats) {
         self.body_pairs += o.body_pairs;
+        self.hulls_apart += o.hulls_apart;
         self.triangle_pairs += o.triangle_pairs;
         self.fallback_pairs += o.fallback_pairs;
         self.contacts += o.contacts;
@@ -167,6 +191,10 @@ pub struct Detector {
     /// across ranks, in two shares (see [`Share`]), on one node all in the
     /// first.
     lists: [Vec<(usize, usize)>; 3],
+    /// Per pair of the first two lists: the direction that last separated
+    /// (or nearly) its bodies' hulls, zero when not yet known (see
+    /// [`separation::apart`]).
+    hints: [Vec<DVec3>; 2],
     /// Per body: body pairs and triangle pairs examined with it as the first
     /// body, since [`Detector::take_work`].
     work: Vec<[u64; 2]>,
@@ -180,6 +208,7 @@ pub struct Detector {
     /// Bytes the copies of the set beyond the first may take (`None`:
     /// [`REPLICA_BUDGET`]); see [`Detector::with_replica_budget`].
     replica_budget: Option<usize>,
+    culling: Culling,
 }
 
 /// Bytes the per-thread copies of the triangle set may take by default,
@@ -188,6 +217,11 @@ pub struct Detector {
 /// sets get fewer copies, shared by the threads in turn (a copy is a
 /// speed-up, never needed).
 pub const REPLICA_BUDGET: usize = 256 << 20;
+
+/// Candidate triangle pairs of a body pair above which they are found by a
+/// sweep ([`sweep`]) rather than by testing every pair: below, the n · m
+/// branch-free box tests cost less than sorting.
+const SWEEP_ABOVE: usize = 256;
 
 /// How many body pairs ahead a detection task asks for the poses of the
 /// bodies it will fill (see `PassSet::prefetch_pose`).
@@ -206,8 +240,18 @@ struct Task {
     candidate_planes: Vec<(DVec3, f64)>,
     other_planes: Vec<(DVec3, f64)>,
     hits: Vec<(u32, u32)>,
+    /// Boxes of `candidates` and `others`, and the sweep over them, for
+    /// body pairs with many triangles near each other.
+    candidate_boxes: Vec<Bounds>,
+    other_boxes: Vec<Bounds>,
+    sweep: sweep::Sweep,
     /// Scratch of `PassSet::fill`.
     vertices: Vec<DVec3>,
+    /// Scratch of the hull test.
+    hulls: HullScratch,
+    /// Body pairs whose boxes overlapped but whose hulls are farther apart
+    /// than their reach.
+    hulls_apart: usize,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
@@ -235,6 +279,12 @@ impl Detector {
             skin,
             ..Detector::default()
         }
+    }
+
+    /// This detector choosing triangle pairs by `culling` (results do not
+    /// depend on it).
+    pub fn with_culling(self, culling: Culling) -> Detector {
+        Detector { culling, ..self }
     }
 
     /// This detector with at most `bytes` for the copies of the triangle set
@@ -335,6 +385,10 @@ impl Detector {
             let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
             let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
             split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
+            for (hints, list) in self.hints.iter_mut().zip(&self.lists) {
+                hints.clear();
+                hints.resize(list.len(), DVec3::ZERO);
+            }
             self.times.broad_phase = seconds_since(start);
             stats.broad_phases = 1;
             self.travel = 0.0;
@@ -390,6 +444,8 @@ impl Detector {
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
         let list = std::mem::take(&mut self.lists[share as usize]);
+        let mut hints = std::mem::take(&mut self.hints[share as usize]);
+        hints.resize(list.len(), DVec3::ZERO);
         let mut sets = std::mem::take(&mut self.sets);
         let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
         let pass = Pass {
@@ -399,6 +455,7 @@ impl Detector {
             opts,
             phase: Phase::LocalLocal,
             build: Some(features),
+            culling: self.culling,
         };
         let mut stats = DetectionStats::default();
         let pieces = if progress.is_some() {
@@ -409,12 +466,13 @@ impl Detector {
         let per = list.len().div_ceil(pieces).max(1);
         // An empty list is one (empty) piece: the pass runs, and is timed.
         let empty: &[(usize, usize)] = &[];
-        let mut chunks: Vec<&[(usize, usize)]> = list.chunks(per).collect();
+        let mut chunks: Vec<(&[(usize, usize)], &mut [DVec3])> =
+            list.chunks(per).zip(hints.chunks_mut(per)).collect();
         if chunks.is_empty() {
-            chunks.push(empty);
+            chunks.push((empty, &mut []));
         }
-        for piece in chunks {
-            let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece);
+        for (piece, hints) in chunks {
+            let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece, hints);
             stats += s;
             // Each task built the contacts of its own body pairs (a body
             // pair's triangle contacts all come from one task), and the tasks
@@ -443,6 +501,7 @@ impl Detector {
         drop(views);
         self.sets = sets;
         self.lists[share as usize] = list;
+        self.hints[share as usize] = hints;
         stats
     }
 
@@ -474,6 +533,7 @@ impl Detector {
             opts,
             phase,
             build: None,
+            culling: self.culling,
         };
         let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.0);
         for task in &self.tasks[..n_tasks] {
@@ -506,7 +566,15 @@ impl Detector {
             broad_phase: seconds_since(start),
             ..DetectionTimes::default()
         };
-        let (mut stats, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, pass, body_pairs);
+        // No list kept: no hints to keep either.
+        let mut hints = vec![DVec3::ZERO; body_pairs.len()];
+        let (mut stats, n_tasks) = run_tasks(
+            &mut self.tasks,
+            &mut self.times,
+            pass,
+            body_pairs,
+            &mut hints,
+        );
         stats.broad_phases = 1;
         (stats, n_tasks)
     }
@@ -583,10 +651,12 @@ struct Pass<'a> {
     opts: &'a Options,
     phase: Phase,
     build: Option<&'a [Features]>,
+    culling: Culling,
 }
 
-/// Runs the tasks of one phase on `body_pairs` (sorted); returns the pass's
-/// counts and how many of `tasks` ran, and sets the narrow phase's time.
+/// Runs the tasks of one phase on `body_pairs` (sorted), with their hints
+/// (see [`separation::apart`]); returns the pass's counts and how many of
+/// `tasks` ran, and sets the narrow phase's time.
 ///
 /// Body pairs are shared among tasks as the kernel's schedule says
 /// ([`Threading::share_lengths`](crate::distance::Threading::share_lengths)).
@@ -595,6 +665,7 @@ fn run_tasks(
     times: &mut DetectionTimes,
     pass: &Pass,
     body_pairs: &[(usize, usize)],
+    hints: &mut [DVec3],
 ) -> (DetectionStats, usize) {
     let start = Instant::now();
     let lengths = pass
@@ -605,20 +676,21 @@ fn run_tasks(
     if tasks.len() < n_tasks {
         tasks.resize_with(n_tasks, Task::default);
     }
-    let mut rest = body_pairs;
+    let (mut rest, mut rest_hints) = (body_pairs, hints);
     let shares = lengths.iter().map(|&len| {
         let (share, tail) = rest.split_at(len);
-        rest = tail;
-        share
+        let (share_hints, hints_tail) = std::mem::take(&mut rest_hints).split_at_mut(len);
+        (rest, rest_hints) = (tail, hints_tail);
+        (share, share_hints)
     });
     // Tasks taken in order by whichever thread is free (rayon's own
     // splitting would hand out halves of the list, whatever they cost).
     shares
         .zip(tasks[..n_tasks].iter_mut())
         .par_bridge()
-        .for_each(|(share, task)| {
+        .for_each(|((share, hints), task)| {
             let start = Instant::now();
-            task.run(pass, share);
+            task.run(pass, share, hints);
             task.busy = seconds_since(start);
         });
     times.narrow_phase += seconds_since(start);
@@ -628,6 +700,7 @@ fn run_tasks(
     for task in &tasks[..n_tasks] {
         times.narrow_phase_busy += task.busy;
         stats.body_pairs += task.body_pairs as u64;
+        stats.hulls_apart += task.hulls_apart as u64;
         stats.triangle_pairs += task.owners.len() as u64;
         counts = counts + task.counts;
         if !task.owners.is_empty() {
@@ -662,7 +735,7 @@ impl Task {
     /// keeps those within reach, sorted by [`pair_order`]; with `build`,
     /// builds the body pairs' contacts from those too (in parallel with the
     /// other tasks rather than after them all).
-    fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)]) {
+    fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)], hints: &mut [DVec3]) {
         let set = pass.set_of_this_thread();
         let Pass {
             world,
@@ -670,9 +743,11 @@ impl Task {
             opts,
             phase,
             build,
+            culling,
             ..
         } = *pass;
         self.body_pairs = 0;
+        self.hulls_apart = 0;
         self.work.clear();
         let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
@@ -684,7 +759,7 @@ impl Task {
             }
         };
         (0..PREFETCH_AHEAD).for_each(prefetch_pair);
-        for (k, &(g, h)) in body_pairs.iter().enumerate() {
+        for (k, (&(g, h), hint)) in body_pairs.iter().zip(hints).enumerate() {
             prefetch_pair(k + PREFETCH_AHEAD);
             let fa = set.fill(g, world, &mut self.vertices);
             let fb = set.fill(h, world, &mut self.vertices);
@@ -720,7 +795,18 @@ impl Task {
             let n_b = select(&mut self.others, b.range(), |j| {
                 bt[j - b0].bounds.overlaps(&a_box)
             });
+            if n_b == 0 {
+                continue;
+            }
             let (candidates, others) = (&self.candidates[..n_a], &self.others[..n_b]);
+            // Only the triangles near the other body can pair: the hull of
+            // those is all the hull test needs, and is tighter than the body's.
+            let hulls = culling == Culling::Hulls;
+            let near = [(&a, candidates), (&b, others)];
+            if hulls && self.hulls.apart(world, set, near, reach, hint) {
+                self.hulls_apart += 1;
+                continue;
+            }
             let planes_of = |ids: &[u32], t: &[SetTriangle], t0: usize, planes: &mut Vec<_>| {
                 planes.clear();
                 planes.extend(ids.iter().map(|&i| t[i as usize - t0].plane()));
@@ -728,19 +814,48 @@ impl Task {
             planes_of(candidates, at, a0, &mut self.candidate_planes);
             planes_of(others, bt, b0, &mut self.other_planes);
             let mut between = pairs.between(&a, &b);
-            self.hits.resize(n_a, (0, 0));
-            for (&j, &plane_j) in others.iter().zip(&self.other_planes) {
-                let tj = &bt[j as usize - b0];
-                let mut found = 0;
-                for (&i, &plane_i) in candidates.iter().zip(&self.candidate_planes) {
-                    let ti = &at[i as usize - a0];
-                    self.hits[found] = (i, j);
-                    found += (ti.bounds.overlaps(&tj.bounds)
-                        & !plane_separates(plane_j, &ti.vertices, reach)
-                        & !plane_separates(plane_i, &tj.vertices, reach))
-                        as usize;
+            let passes = |p: usize, q: usize| {
+                let (ti, tj) = (
+                    &at[candidates[p] as usize - a0],
+                    &bt[others[q] as usize - b0],
+                );
+                ti.bounds.overlaps(&tj.bounds)
+                    & !plane_separates(self.other_planes[q], &ti.vertices, reach)
+                    & !plane_separates(self.candidate_planes[p], &tj.vertices, reach)
+            };
+            if hulls && n_a * n_b > SWEEP_ABOVE {
+                // Large meshes: only pairs whose boxes overlap are visited.
+                let boxes = |ids: &[u32], t: &[SetTriangle], t0: usize, out: &mut Vec<Bounds>| {
+                    out.clear();
+                    out.extend(ids.iter().map(|&i| t[i as usize - t0].bounds));
+                };
+                boxes(candidates, at, a0, &mut self.candidate_boxes);
+                boxes(others, bt, b0, &mut self.other_boxes);
+                let common = a_box.intersection(&b_box);
+                let axis = (common.hi - common.lo).max_position();
+                self.hits.clear();
+                let hits = &mut self.hits;
+                self.sweep.overlapping_pairs(
+                    &self.candidate_boxes,
+                    &self.other_boxes,
+                    axis,
+                    |p, q| {
+                        if passes(p, q) {
+                            hits.push((candidates[p], others[q]));
+                        }
+                    },
+                );
+                between.extend(&self.hits);
+            } else {
+                self.hits.resize(n_a, (0, 0));
+                for (q, &j) in others.iter().enumerate() {
+                    let mut found = 0;
+                    for (p, &i) in candidates.iter().enumerate() {
+                        self.hits[found] = (i, j);
+                        found += passes(p, q) as usize;
+                    }
+                    between.extend(&self.hits[..found]);
                 }
-                between.extend(&self.hits[..found]);
             }
             let added = pairs.as_slice().len() - before;
             if let Some(last) = self.work.last_mut() {
@@ -776,6 +891,84 @@ impl Task {
             ),
             None => 0,
         };
+    }
+}
+
+/// The two parts' corners, each once, for the hull test, and per mesh
+/// vertex the call that last took it (`stamp`).
+#[derive(Debug, Default)]
+struct HullScratch {
+    corners: [Vec<DVec3>; 2],
+    seen: Vec<u64>,
+    stamp: u64,
+}
+
+impl HullScratch {
+    /// Whether the convex hulls of two sets of triangles, each some of a
+    /// part's (by index into the set), are certainly farther apart than
+    /// `reach` ([`separation::apart`]): then no triangle pair of theirs is
+    /// within reach, and none need be examined.
+    fn apart(
+        &mut self,
+        world: &World,
+        set: PassSet,
+        parts: [(&Part, &[u32]); 2],
+        reach: f64,
+        hint: &mut DVec3,
+    ) -> bool {
+        for ((part, ids), out) in parts.into_iter().zip(&mut self.corners) {
+            self.stamp += 1;
+            gather_corners(world, set, part, ids, self.stamp, &mut self.seen, out);
+        }
+        let union = parts[0].0.bounds.union(&parts[1].0.bounds);
+        let extent = (union.hi - union.lo).length();
+        separation::apart(&self.corners[0], &self.corners[1], reach, extent, hint)
+    }
+}
+
+/// The corners of triangles `ids` of `part` into `out`, each mesh vertex
+/// once (a closed mesh has about half as many vertices as triangles; the
+/// hull test then reads each once rather than six times). `seen` marks the
+/// mesh vertices taken, with `stamp`, new for each call.
+fn gather_corners(
+    world: &World,
+    set: PassSet,
+    part: &Part,
+    ids: &[u32],
+    stamp: u64,
+    seen: &mut Vec<u64>,
+    out: &mut Vec<DVec3>,
+) {
+    out.clear();
+    let Some(first) = part.range().next() else {
+        return;
+    };
+    let mesh = &world.shapes[world.bodies[set.key(first).body as usize].shape];
+    if seen.len() < mesh.vertices.len() {
+        seen.resize(mesh.vertices.len(), 0);
+    }
+    let n = part.triangles().len();
+    // A whole body's triangles are in mesh order (a set's parts are sorted
+    // by key): no key need be read.
+    let whole = n == mesh.triangles.len()
+        && set.key(first).index == 0
+        && set.key(first + n - 1).index as usize == n - 1;
+    let triangles = part.triangles();
+    for &i in ids {
+        let k = i as usize - first;
+        let index = if whole {
+            k
+        } else {
+            set.key(i as usize).index as usize
+        };
+        let corners = &mesh.triangles[index];
+        for (&v, p) in corners.iter().zip(&triangles[k].vertices) {
+            let mark = &mut seen[v as usize];
+            if *mark != stamp {
+                *mark = stamp;
+                out.push(*p);
+            }
+        }
     }
 }
 

@@ -23,7 +23,7 @@ use std::cell::UnsafeCell;
 use std::ops::Range;
 
 mod pass;
-pub(crate) use pass::{PassPairs, PassSet};
+pub(crate) use pass::{Part, PassPairs, PassSet};
 use std::sync::atomic::{AtomicU8, Ordering};
 
 /// A triangle's global name: its body and its index in the body's mesh.

@@ -32,7 +32,7 @@
 use super::rotation::RotationParams;
 use super::{Books, Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
 use crate::body::Body;
-use crate::contact::{Contact, Detector};
+use crate::contact::{Contact, Culling, Detector};
 use crate::distance::Options;
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
@@ -45,12 +45,16 @@ use serde::Deserialize;
 use std::ops::Range;
 
 /// `contact = {}`, or `contact = { skin = 1e-3 }` to keep a neighbour list
-/// (m; 0: the broad phase runs every step).
+/// (m; 0: the broad phase runs every step); `culling = "boxes"` examines
+/// every triangle pair near the other body's box instead of first testing
+/// the bodies' hulls ([`Culling`]; the same contacts, for comparison).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ContactParams {
     #[serde(default)]
     pub skin: f64,
+    #[serde(default, deserialize_with = "crate::names::by_name")]
+    pub culling: Culling,
 }
 
 fn positive(x: f64) -> bool {
@@ -93,7 +97,7 @@ impl Declare for ContactParams {
         Some(Box::new(ContactEffect::new(
             &scene.world,
             scene.kernel,
-            self.skin,
+            Detector::with_skin(self.skin).with_culling(self.culling),
             rotation,
         )))
     }
@@ -111,10 +115,9 @@ pub struct ContactEffect {
 }
 
 impl ContactEffect {
-    /// `skin`: the detector's neighbour-list skin (0: none).
-    pub fn new(world: &World, kernel: Options, skin: f64, rotation: bool) -> Self {
+    pub fn new(world: &World, kernel: Options, detector: Detector, rotation: bool) -> Self {
         ContactEffect {
-            detector: Detector::with_skin(skin),
+            detector,
             kernel,
             features: world.shapes.iter().map(Features::of).collect(),
             halo: world.per_body(|m| m.halo),
