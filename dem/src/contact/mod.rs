@@ -128,6 +128,9 @@ pub enum Culling {
 
 crate::named_enum!(Culling, "culling", [(Hulls, "hulls"), (Boxes, "boxes")]);
 
+/// Two bodies (or their groups in a triangle set).
+type BodyPair = (usize, usize);
+
 /// Pieces a share's pairs are examined in when messages are in flight
 /// meanwhile (see [`Detector::detect_share`]): between pieces, the caller
 /// lets them move.
@@ -466,7 +469,7 @@ impl Detector {
         let per = list.len().div_ceil(pieces).max(1);
         // An empty list is one (empty) piece: the pass runs, and is timed.
         let empty: &[(usize, usize)] = &[];
-        let mut chunks: Vec<(&[(usize, usize)], &mut [DVec3])> =
+        let mut chunks: Vec<(&[BodyPair], &mut [DVec3])> =
             list.chunks(per).zip(hints.chunks_mut(per)).collect();
         if chunks.is_empty() {
             chunks.push((empty, &mut []));

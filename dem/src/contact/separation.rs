@@ -93,7 +93,7 @@ fn search(a: &[DVec3], b: &[DVec3], origin: DVec3, reach: f64, mut v: DVec3) -> 
     let mut simplex = Simplex::default();
     for _ in 0..MAX_ITERATIONS {
         let vv = v.length_squared();
-        if !(vv > 0.0) {
+        if vv.is_nan() || vv <= 0.0 {
             return (false, v); // touching or overlapping (or not finite)
         }
         // The point of A − B least along v: its projection is the lower
@@ -301,6 +301,11 @@ mod tests {
     use super::*;
     use crate::distance::{distance_triangle_triangle, Triangle};
 
+    /// A search with no direction to start from.
+    fn no_hint() -> DVec3 {
+        DVec3::ZERO
+    }
+
     fn extent(a: &[DVec3], b: &[DVec3]) -> f64 {
         let all: Vec<DVec3> = a.iter().chain(b).copied().collect();
         let lo = all.iter().fold(DVec3::INFINITY, |m, p| m.min(*p));
@@ -383,7 +388,7 @@ mod tests {
             let b = cloud(offset, 1.0, 7, seed + 1000);
             let (lower, upper) = brute_bounds(&a, &b);
             for reach in [0.0, 0.05, 0.2] {
-                let verdict = apart(&a, &b, reach, extent(&a, &b), &mut DVec3::ZERO);
+                let verdict = apart(&a, &b, reach, extent(&a, &b), &mut no_hint());
                 assert!(
                     !(verdict && upper < reach),
                     "seed {seed}: culled a pair {upper} apart at reach {reach}"
@@ -421,7 +426,7 @@ mod tests {
                         &sb,
                         0.5 * lower * scale,
                         extent(&sa, &sb),
-                        &mut DVec3::ZERO
+                        &mut no_hint()
                     ),
                     "{scale} {far}"
                 );
@@ -431,7 +436,7 @@ mod tests {
                         &sb,
                         1.01 * upper * scale,
                         extent(&sa, &sb),
-                        &mut DVec3::ZERO
+                        &mut no_hint()
                     ),
                     "{scale} {far}"
                 );
@@ -446,7 +451,7 @@ mod tests {
         for (k, shift) in [0.0, 0.5, 1.0, 1.9].into_iter().enumerate() {
             let b = cloud(DVec3::new(shift, 0.0, 0.0), 1.0, 10, 6 + k as u64);
             assert!(
-                !apart(&a, &b, 0.0, extent(&a, &b), &mut DVec3::ZERO),
+                !apart(&a, &b, 0.0, extent(&a, &b), &mut no_hint()),
                 "shift {shift}"
             );
         }
@@ -455,13 +460,7 @@ mod tests {
             .map(|i| DVec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64))
             .collect();
         assert!(
-            !apart(
-                &cube,
-                &corner,
-                0.0,
-                extent(&cube, &corner),
-                &mut DVec3::ZERO
-            ),
+            !apart(&cube, &corner, 0.0, extent(&cube, &corner), &mut no_hint()),
             "a shared corner touches"
         );
     }
