@@ -115,10 +115,10 @@ pub enum Share {
 /// differ in how many pairs they examine and what that costs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Culling {
-    /// The bodies' hulls first ([`separation`]): a body pair whose hulls are
+    /// The bodies' hulls first (module `separation`): a body pair whose hulls are
     /// farther apart than its reach is done. Then the triangles near the
     /// other body's box, paired by a sweep over their boxes when there are
-    /// many ([`sweep`]): O(n + m) per body pair rather than O(n · m).
+    /// many (module `sweep`): O(n + m) per body pair rather than O(n · m).
     #[default]
     Hulls,
     /// The triangles near the other body's box, each of one body's against
