@@ -449,7 +449,9 @@ mod tests {
     fn overlapping_hulls_are_never_apart() {
         let a = cloud(DVec3::ZERO, 1.0, 10, 5);
         for (k, shift) in [0.0, 0.5, 1.0, 1.9].into_iter().enumerate() {
-            let b = cloud(DVec3::new(shift, 0.0, 0.0), 1.0, 10, 6 + k as u64);
+            // B holds a point of A's hull (A's centroid): the hulls overlap.
+            let mut b = cloud(DVec3::new(shift, 0.0, 0.0), 1.0, 10, 6 + k as u64);
+            b.push(a.iter().sum::<DVec3>() / a.len() as f64);
             assert!(
                 !apart(&a, &b, 0.0, extent(&a, &b), &mut no_hint()),
                 "shift {shift}"

@@ -116,7 +116,8 @@ mod tests {
                 }
             }
             want.sort();
-            assert!(want.len() > 10, "seed {seed}: a test with pairs");
+            // At least the copy of a[1] and the box touching a[0].
+            assert!(want.len() >= 2, "seed {seed}: a test with pairs");
             for axis in 0..3 {
                 let mut got = Vec::new();
                 sweep.overlapping_pairs(&a, &b, axis, |p, q| got.push((p, q)));
