@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates docs/tables.md: the current results table of each area
-# (distance kernels, the DEM on one node, the partitioners, the DEM across
+# (distance kernels, the DEM on one node, contact culling, the partitioners, the DEM across
 # ranks: ranks against threads, memory, and the projection to the paper's
 # run; the output's size), each under the command that printed it, stamped with the CPU model,
 # the cores and the commit. About fifteen minutes on two cores.
@@ -43,6 +43,17 @@ and \"scalar, 1 thread\" rows." \
 section "DEM on one node" "Thread scaling of the 400-particle hopper: time per run, by \
 section, and the reference workload's speed-up in the same minutes (docs/dem.md, \"Threads\")." \
   "tridem scaling scenes/hopper-400.toml --threads 1,$cores --repeat 3 --statistic min"
+{
+  echo "## Contact culling"
+  echo
+  echo "The bodies' hulls against their boxes alone as the mid-phase that chooses a body"
+  echo "pair's triangle pairs, on one thread: the same contacts and bits, the time per step"
+  echo "and the triangle pairs checked per contact (docs/dem.md, \"Culling\")."
+  echo
+  scripts/culling-table.sh 3 100
+  echo
+} >> "$page"
+echo "Contact culling: done" >&2
 {
   echo "## Partitioners"
   echo

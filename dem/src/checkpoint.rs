@@ -8,6 +8,7 @@
 //! checkpoint holds, besides the bodies, the forces and every effect's own
 //! state. What is derived (neighbour lists, triangle caches) is rebuilt.
 
+use crate::scene::Deal;
 use glam::{DQuat, DVec3};
 
 /// The moving state of one body.
@@ -71,29 +72,190 @@ impl Checkpoint {
     /// their bits): stored with it on disk, so that a damaged file (one
     /// flipped bit) is refused rather than resumed from garbage.
     pub fn checksum(&self) -> u64 {
-        let mut h = crate::world::Fnv1a::default();
-        h.f64(self.time);
-        h.u64(self.step);
-        h.f64(self.dt);
-        h.u64(self.fingerprint);
-        h.u64(self.bodies.len() as u64);
-        for b in &self.bodies {
-            let numbers = [b.x.to_array(), b.v.to_array(), b.l.to_array()];
-            numbers.iter().flatten().for_each(|&c| h.f64(c));
-            b.q.to_array().into_iter().for_each(|c| h.f64(c));
-        }
-        for v in self.force.iter().chain(&self.torque) {
-            v.to_array().into_iter().for_each(|c| h.f64(c));
-        }
+        let mut d = Digest::new(self.time, self.step, self.dt, self.fingerprint);
+        d.count(self.bodies.len());
+        self.bodies.iter().for_each(|b| d.body(b));
+        self.force
+            .iter()
+            .chain(&self.torque)
+            .for_each(|&v| d.vector(v));
         for e in &self.effects {
-            h.bytes(e.effect.as_bytes());
-            h.u64(e.row as u64);
+            d.effect(&e.effect, e.row);
             for part in [&e.stored, &e.taken, &e.history] {
-                h.u64(part.len() as u64);
-                part.iter().for_each(|&v| h.f64(v));
+                d.count(part.len());
+                part.iter().for_each(|&v| d.number(v));
             }
         }
-        h.0
+        d.finish()
+    }
+}
+
+/// [`Checkpoint::checksum`] fed piece by piece, in the order it reads a
+/// checkpoint, so that a file too large to hold at once can be checked as
+/// it streams by: the header, the body count, every body's state, every
+/// force then every torque, and per effect its name and row length followed
+/// by each part's length and numbers.
+pub struct Digest(crate::world::Fnv1a);
+
+impl Digest {
+    pub fn new(time: f64, step: u64, dt: f64, fingerprint: u64) -> Digest {
+        let mut h = crate::world::Fnv1a::default();
+        h.f64(time);
+        h.u64(step);
+        h.f64(dt);
+        h.u64(fingerprint);
+        Digest(h)
+    }
+
+    pub fn count(&mut self, n: usize) {
+        self.0.u64(n as u64);
+    }
+
+    pub fn body(&mut self, b: &BodyState) {
+        let numbers = [b.x.to_array(), b.v.to_array(), b.l.to_array()];
+        numbers.iter().flatten().for_each(|&c| self.0.f64(c));
+        b.q.to_array().into_iter().for_each(|c| self.0.f64(c));
+    }
+
+    pub fn vector(&mut self, v: DVec3) {
+        v.to_array().into_iter().for_each(|c| self.0.f64(c));
+    }
+
+    pub fn effect(&mut self, name: &str, row: usize) {
+        self.0.bytes(name.as_bytes());
+        self.0.u64(row as u64);
+    }
+
+    pub fn number(&mut self, v: f64) {
+        self.0.f64(v);
+    }
+
+    pub fn finish(self) -> u64 {
+        self.0 .0
+    }
+}
+
+/// What one rank of a distributed run keeps of a checkpoint: the run's
+/// header, the state, force and torque of each particle the scene deals to
+/// it ([`Deal`]: ids `deal.rank`, `deal.rank + deal.ranks`, ... below the
+/// particle count), and the effects' states with only the history rows it
+/// restores ([`Deal::keeps_row`]). Obstacles do not move: their state is the
+/// scene's. A rank never holds the whole checkpoint, however large the run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckpointShare {
+    pub time: f64,
+    pub step: u64,
+    pub dt: f64,
+    pub fingerprint: u64,
+    /// Rows in the whole checkpoint of states, forces and torques.
+    pub counts: [usize; 3],
+    pub deal: Deal,
+    pub bodies: Vec<BodyState>,
+    pub force: Vec<DVec3>,
+    pub torque: Vec<DVec3>,
+    pub effects: Vec<EffectState>,
+}
+
+impl CheckpointShare {
+    /// The share of `c` that `deal` gives one rank, of a scene of
+    /// `particles` particles.
+    pub fn of(c: &Checkpoint, deal: Deal, particles: usize) -> CheckpointShare {
+        let ids = Deal::ids(deal, particles.min(c.bodies.len()));
+        let pick = |v: &[DVec3]| ids.clone().filter_map(|i| v.get(i).copied()).collect();
+        CheckpointShare {
+            time: c.time,
+            step: c.step,
+            dt: c.dt,
+            fingerprint: c.fingerprint,
+            counts: [c.bodies.len(), c.force.len(), c.torque.len()],
+            deal,
+            bodies: ids.clone().map(|i| c.bodies[i]).collect(),
+            force: pick(&c.force),
+            torque: pick(&c.torque),
+            effects: c
+                .effects
+                .iter()
+                .map(|e| EffectState {
+                    history: deal.rows_kept(&e.history, e.row, particles),
+                    ..e.clone()
+                })
+                .collect(),
+        }
+    }
+
+    /// Particle `id`'s state, force and torque, when this share holds it.
+    pub fn state(&self, id: usize) -> Option<(BodyState, DVec3, DVec3)> {
+        let ranks = self.deal.ranks as usize;
+        if id % ranks != self.deal.rank as usize {
+            return None;
+        }
+        let k = id / ranks;
+        Some((
+            *self.bodies.get(k)?,
+            *self.force.get(k)?,
+            *self.torque.get(k)?,
+        ))
+    }
+
+    /// The ids of the particles held, with their states, forces and torques.
+    pub fn held(&self) -> impl Iterator<Item = (usize, &BodyState, &DVec3, &DVec3)> {
+        let (rank, ranks) = (self.deal.rank as usize, self.deal.ranks as usize);
+        (0..self
+            .bodies
+            .len()
+            .min(self.force.len())
+            .min(self.torque.len()))
+            .map(move |k| {
+                (
+                    rank + k * ranks,
+                    &self.bodies[k],
+                    &self.force[k],
+                    &self.torque[k],
+                )
+            })
+    }
+}
+
+impl Deal {
+    /// The ids dealt to this rank among the first `particles`.
+    pub fn ids(self, particles: usize) -> impl Iterator<Item = usize> + Clone {
+        (self.rank as usize..particles).step_by(self.ranks.max(1) as usize)
+    }
+
+    /// Whether this rank restores the history row naming bodies `a` and `b`
+    /// (the row's first two numbers) of a scene of `particles` particles:
+    /// the rank the contact's home is dealt to, the home being `a`, or `b`
+    /// when `a` is an obstacle. Rank 0 also keeps a row whose home is no
+    /// particle, so that restoring it refuses it as one process would.
+    pub fn keeps_row(self, a: f64, b: f64, particles: usize) -> bool {
+        let particle = |v: f64| (v >= 0.0 && v.fract() == 0.0 && v < particles as f64).then_some(v);
+        let home = match particle(a) {
+            Some(a) => Some(a),
+            None if a.fract() == 0.0 && a >= particles as f64 => particle(b),
+            None => None,
+        };
+        match home {
+            Some(h) => self.keeps(h as u32),
+            None => self.rank == 0,
+        }
+    }
+
+    /// The rows of `history` (rows of `row` numbers) this rank restores; a
+    /// history not made of whole rows is kept whole by rank 0, to be refused.
+    pub fn rows_kept(self, history: &[f64], row: usize, particles: usize) -> Vec<f64> {
+        if row < 2 || !history.len().is_multiple_of(row) {
+            return if self.rank == 0 {
+                history.to_vec()
+            } else {
+                Vec::new()
+            };
+        }
+        history
+            .chunks_exact(row)
+            .filter(|r| self.keeps_row(r[0], r[1], particles))
+            .flatten()
+            .copied()
+            .collect()
     }
 }
 

@@ -1,6 +1,6 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
-use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
+use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
 use crate::effects::{Effect, Forces, RotationParams, StepContext, StepStats};
 use crate::frame::{EnergyBooks, Frame, FrameContact};
 use crate::integrate::{drift, half_kick, travel_bound};
@@ -388,50 +388,72 @@ pub fn frame_contacts(world: &World, ctx: &StepContext) -> Vec<FrameContact> {
 /// on from: the same scene (fingerprint), time step and bodies, every number
 /// finite. The effects' states are checked as they are restored.
 pub fn check_checkpoint(scene: &Scene, checkpoint: &Checkpoint) -> Result<(), CheckpointError> {
+    let c = checkpoint;
+    let counts = [c.bodies.len(), c.force.len(), c.torque.len()];
+    check_run(scene, c.fingerprint, c.dt, c.time, counts)?;
+    let held = c.bodies.iter().zip(&c.force).zip(&c.torque);
+    check_finite(held.enumerate().map(|(i, ((s, f), t))| (i, s, f, t)))
+}
+
+/// [`check_checkpoint`] of the share of a checkpoint one rank holds: the
+/// whole run's header and counts, the finite numbers of its own bodies.
+pub fn check_share(scene: &Scene, share: &CheckpointShare) -> Result<(), CheckpointError> {
+    check_run(scene, share.fingerprint, share.dt, share.time, share.counts)?;
+    check_finite(share.held())
+}
+
+/// The run a checkpoint continues: `scene`'s, stepped by its `dt`, with one
+/// state, force and torque per body (`counts`).
+fn check_run(
+    scene: &Scene,
+    fingerprint: u64,
+    dt: f64,
+    time: f64,
+    counts: [usize; 3],
+) -> Result<(), CheckpointError> {
     let fail = |why: String| Err(CheckpointError(why));
     let n = scene.census.bodies();
-    if checkpoint.fingerprint != scene.fingerprint() {
+    if fingerprint != scene.fingerprint() {
         return fail(
             "the checkpoint was taken of another scene (materials, shapes, bodies or obstacles differ)"
                 .into(),
         );
     }
-    if checkpoint.dt.to_bits() != scene.dt.to_bits() {
+    if dt.to_bits() != scene.dt.to_bits() {
         return fail(format!(
-            "the checkpoint's run stepped by dt = {:e} s, the scene by {:e} s",
-            checkpoint.dt, scene.dt
+            "the checkpoint's run stepped by dt = {dt:e} s, the scene by {:e} s",
+            scene.dt
         ));
     }
-    let counts = [
-        checkpoint.bodies.len(),
-        checkpoint.force.len(),
-        checkpoint.torque.len(),
-    ];
     if counts != [n; 3] {
         return fail(format!(
             "the scene has {n} bodies, the checkpoint {} bodies, {} forces and {} torques",
             counts[0], counts[1], counts[2]
         ));
     }
+    if !time.is_finite() {
+        return fail(format!("the checkpoint's time {time} is not finite"));
+    }
+    Ok(())
+}
+
+/// Every body's state and load finite, by id: the first that is not named.
+fn check_finite<'a>(
+    held: impl Iterator<Item = (usize, &'a BodyState, &'a DVec3, &'a DVec3)>,
+) -> Result<(), CheckpointError> {
     let finite =
         |s: &BodyState| s.x.is_finite() && s.q.is_finite() && s.v.is_finite() && s.l.is_finite();
-    if let Some(i) = checkpoint.bodies.iter().position(|s| !finite(s)) {
-        return fail(format!("body {i}'s state in the checkpoint is not finite"));
-    }
-    let loads = checkpoint.force.iter().zip(&checkpoint.torque);
-    if let Some(i) = loads
-        .clone()
-        .position(|(f, t)| !f.is_finite() || !t.is_finite())
-    {
-        return fail(format!(
-            "the force on body {i} in the checkpoint is not finite"
-        ));
-    }
-    if !(checkpoint.time.is_finite()) {
-        return fail(format!(
-            "the checkpoint's time {} is not finite",
-            checkpoint.time
-        ));
+    for (i, s, f, t) in held {
+        if !finite(s) {
+            return Err(CheckpointError(format!(
+                "body {i}'s state in the checkpoint is not finite"
+            )));
+        }
+        if !f.is_finite() || !t.is_finite() {
+            return Err(CheckpointError(format!(
+                "the force on body {i} in the checkpoint is not finite"
+            )));
+        }
     }
     Ok(())
 }

@@ -52,7 +52,7 @@ use crate::local::{Entry, Local};
 use crate::metrics::StepMetrics;
 use crate::records::{BodyRecord, ContactRecord, Motion, StateRecord, TermKey, TermRecord};
 use dem::body::Body;
-use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, EffectState};
+use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
 use dem::contact::{Bounds, Contact, Detector, Role, Share};
 use dem::distance::Options;
 use dem::effects::{
@@ -63,7 +63,7 @@ use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
-use dem::simulation::{build_effects, check_checkpoint, energy_books, frame_contacts, shape_radii};
+use dem::simulation::{build_effects, check_share, energy_books, frame_contacts, shape_radii};
 use glam::DVec3;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -100,7 +100,7 @@ pub struct Settings {
 /// Where a run starts: the scene's initial state, or a checkpoint of it.
 pub enum Start<'a> {
     Fresh,
-    Resume(&'a Checkpoint),
+    Resume(&'a CheckpointShare),
 }
 
 /// A simulation stepped on every rank of a communicator.
@@ -182,10 +182,13 @@ impl<'c> DistributedSimulation<'c> {
         let census = &scene.census;
         let (bodies, particles) = (census.bodies(), census.particles());
         if let Start::Resume(c) = start {
-            check_checkpoint(scene, c).map_err(|e| e.to_string())?;
-            // The whole state checked on every rank, so that all refuse alike.
-            dem::simulation::restore_effects(&mut build_effects(scene), &c.effects, bodies)
-                .map_err(|e| e.to_string())?;
+            if c.deal != share {
+                return fail(format!(
+                    "the checkpoint was read for rank {} of {}, not {me} of {size}",
+                    c.deal.rank, c.deal.ranks
+                ));
+            }
+            check_share(scene, c).map_err(|e| e.to_string())?;
         }
         let fingerprint = scene.fingerprint();
         let materials = &scene.world.materials;
@@ -199,8 +202,7 @@ impl<'c> DistributedSimulation<'c> {
         scene.world.ids = Vec::new();
         let mut effects = build_effects(scene);
         if let Start::Resume(c) = start {
-            let dealt_to = |id: usize| (id < particles).then(|| share.rank_of(id as u32) as i32);
-            restore_share(&mut effects, c, &dealt_to, me, bodies)?;
+            restore_share(&mut effects, c, me, bodies)?;
         }
         let part = settings
             .partitioner
@@ -1034,7 +1036,7 @@ impl FrameParts {
 /// or `state`'s, and every obstacle with its box (inflated by its halo).
 fn dealt(
     scene: &Scene,
-    state: Option<&Checkpoint>,
+    state: Option<&CheckpointShare>,
     me: i32,
 ) -> (Vec<Entry>, Vec<(u32, Body, Bounds)>) {
     let world = &scene.world;
@@ -1050,11 +1052,9 @@ fn dealt(
         }
         let mut body = b.clone();
         let (mut force, mut torque) = (DVec3::ZERO, DVec3::ZERO);
-        if let Some(c) = state {
-            let k = id as usize;
-            let s = &c.bodies[k];
+        if let Some((s, f, t)) = state.and_then(|c| c.state(id as usize)) {
             (body.x, body.q, body.v, body.l) = (s.x, s.q, s.v, s.l);
-            (force, torque) = (c.force[k], c.torque[k]);
+            (force, torque) = (f, t);
         }
         entries.push(Entry {
             id,
@@ -1069,7 +1069,7 @@ fn dealt(
     (entries, obstacles)
 }
 
-fn start_state<'a>(start: &Start<'a>) -> Option<&'a Checkpoint> {
+fn start_state<'a>(start: &Start<'a>) -> Option<&'a CheckpointShare> {
     match start {
         Start::Fresh => None,
         Start::Resume(c) => Some(c),
@@ -1083,19 +1083,16 @@ fn start_time(start: &Start) -> (f64, u64) {
     }
 }
 
-/// Restores this rank's share of the effects' states from `checkpoint` (of
-/// a scene of `bodies` bodies): the books on rank 0 (exact sums: the
-/// others' share is zero), and the history of the contacts whose home
-/// particle was dealt to this rank (`dealt_to`: a particle's rank, by id;
-/// `None` for an obstacle).
+/// Restores this rank's share of the effects' states: the books on rank 0
+/// (exact sums: the others' share is zero), and the history rows the share
+/// holds (of a scene of `bodies` bodies).
 fn restore_share(
     effects: &mut [Box<dyn Effect>],
-    checkpoint: &Checkpoint,
-    dealt_to: &dyn Fn(usize) -> Option<i32>,
+    share: &CheckpointShare,
     me: i32,
     bodies: usize,
 ) -> Result<(), String> {
-    let states: Vec<EffectState> = checkpoint
+    let states: Vec<EffectState> = share
         .effects
         .iter()
         .map(|s| {
@@ -1103,23 +1100,6 @@ fn restore_share(
             if me != 0 {
                 s.stored = ExactSum::default().parts();
                 s.taken = ExactSum::default().parts();
-            }
-            if s.row > 0 {
-                let rows: Vec<f64> = s
-                    .history
-                    .chunks_exact(s.row)
-                    .filter(|r| {
-                        let (a, b) = (r[0] as usize, r[1] as usize);
-                        let home = match dealt_to(a) {
-                            None => b,
-                            Some(_) => a,
-                        };
-                        dealt_to(home) == Some(me)
-                    })
-                    .flatten()
-                    .copied()
-                    .collect();
-                s.history = rows;
             }
             s
         })

@@ -11,7 +11,7 @@ use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Layout, Output};
 use crate::run_cmd::{describe, refuse_crossings, refuse_overlaps_at_start, DEEP_STEPS};
-use dem::checkpoint::Checkpoint;
+use dem::checkpoint::CheckpointShare;
 use dem::frame::Frame;
 use dem::scene::{Deal, Scene};
 use distributed::metrics::{imbalance, json_line};
@@ -103,7 +103,8 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
             .build_global()
             .map_err(|e| CliError::runtime(e.to_string())),
     )?;
-    let resumed = agree(comm, read_checkpoint(args))?;
+    let particles = scene.census.particles();
+    let resumed = agree(comm, read_checkpoint(args, share(comm), particles))?;
     let first = resumed.as_ref().map_or(0, |c| c.step);
     let steps = agree(comm, crate::run_cmd::steps_to_run(args, &scene, first))?;
     let start_with = match &resumed {
@@ -199,10 +200,15 @@ fn refuse_metrics_over(args: &RunArgs) -> CliResult {
     }
 }
 
-/// The checkpoint to resume from, read on every rank (each keeps its share).
-fn read_checkpoint(args: &RunArgs) -> CliResult<Option<Checkpoint>> {
+/// This rank's share of the checkpoint to resume from (each rank reads its
+/// own rows; rank 0 checks the whole file).
+fn read_checkpoint(
+    args: &RunArgs,
+    deal: Deal,
+    particles: usize,
+) -> CliResult<Option<CheckpointShare>> {
     match &args.resume {
-        Some(file) => checkpoint_file::read(file).map(Some),
+        Some(file) => checkpoint_file::read_share(file, deal, particles).map(Some),
         None => Ok(None),
     }
 }
