@@ -68,8 +68,9 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 boulders.t
   for k in $(seq "$repeat"); do
     cmp -s "$work/$name-hulls-$k/checkpoint.h5" "$work/$name-boxes-$k/checkpoint.h5" || same=no
   done
-  share=$(echo ${settled[hulls]} | med)
-  echo "| $name | $steps | $(echo ${secs[hulls]} | spread) | $(echo ${secs[boxes]} | spread) | $(echo $ratios | spread) | $(echo ${per[hulls]} | med) / $(echo ${per[boxes]} | med) | $(python3 -c "print('%.0f%%' % (100*$share))") | $same |"
+  share=$(echo ${settled[hulls]} | python3 -c "
+import sys, statistics as s; print(100 * s.median(float(x) for x in sys.stdin.read().split()))")
+  echo "| $name | $steps | $(echo ${secs[hulls]} | spread) | $(echo ${secs[boxes]} | spread) | $(echo $ratios | spread) | $(echo ${per[hulls]} | med) / $(echo ${per[boxes]} | med) | $(printf '%.1f%%' "$share") | $same |"
   unset secs per settled
 done
 rm -rf "$work"

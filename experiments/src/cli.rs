@@ -160,9 +160,15 @@ pub struct StudyArgs {
     pub threads: Vec<usize>,
     /// Steps per run (default 3000: 0.15 s of the scene;
     /// accuracy: 500, before the trajectories of every setting have parted
-    /// chaotically).
+    /// chaotically), after the --settle steps.
     #[arg(long, value_parser = bounds::steps)]
     pub steps: Option<u64>,
+    /// Steps the scene runs once, with brute force on every core, before
+    /// the study; every run then resumes from its final state (default:
+    /// accuracy 5000, so that its runs step the dense phase, thousands of
+    /// contacts per step; the others 0, from the scene's start).
+    #[arg(long, value_parser = bounds::steps)]
+    pub settle: Option<u64>,
     /// The repartitioning intervals K of repartition-frequency (0: never).
     #[arg(long, value_delimiter = ',', default_value = "1,5,20,100,0", value_parser = bounds::steps)]
     pub every: Vec<u64>,
@@ -191,6 +197,13 @@ pub struct StudyArgs {
 impl StudyArgs {
     pub fn steps(&self) -> u64 {
         self.steps.unwrap_or(self.name.default_steps())
+    }
+
+    pub fn settle(&self) -> u64 {
+        self.settle.unwrap_or(match self.name {
+            StudyName::Accuracy => 5000,
+            _ => 0,
+        })
     }
 
     pub fn scene(&self) -> PathBuf {

@@ -122,6 +122,27 @@ fn plot(
     Ok(())
 }
 
+/// How far the energy books of the run in `dir` stray: the largest departure
+/// of their sum (kinetic, stored and dissipated) from its value at the
+/// first output step, over the largest kinetic energy of the output steps.
+pub(crate) fn books_drift(dir: &Path) -> CliResult<f64> {
+    let steps = read(dir)?;
+    let column = |n: &str| steps.get(n).unwrap_or(&[]).to_vec();
+    let (total, t, r) = (
+        column("total"),
+        column("kinetic_translation"),
+        column("kinetic_rotation"),
+    );
+    let start = total.first().copied().unwrap_or(0.0);
+    let drift = total.iter().map(|v| (v - start).abs()).fold(0.0, f64::max);
+    let kinetic = t.iter().zip(&r).map(|(a, b)| a + b).fold(0.0, f64::max);
+    Ok(if kinetic > 0.0 {
+        drift / kinetic
+    } else {
+        drift
+    })
+}
+
 /// Every output step's scalars from DIR/run.h5.
 fn read(dir: &Path) -> CliResult<Steps> {
     let path = dir.join("run.h5");

@@ -170,6 +170,7 @@ pub fn run(args: &StudyArgs) -> CliResult {
         specs.push(twin);
     }
     create_output_dir(&dir.join("runs"))?;
+    let resume_from = settle(args, &dir)?;
     let mut groups: Vec<Group> = specs
         .iter()
         .map(|s| Group {
@@ -181,7 +182,7 @@ pub fn run(args: &StudyArgs) -> CliResult {
     for rep in 0..args.repeat as usize {
         for (k, spec) in specs.iter().enumerate() {
             let start = Instant::now();
-            let r = run_one(args, &dir, spec.clone(), rep)?;
+            let r = run_one(args, &dir, spec.clone(), rep, resume_from.as_deref())?;
             eprintln!(
                 "[{}/{total}] {:<24} {:>7.2} s",
                 rep * specs.len() + k + 1,
@@ -344,22 +345,61 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
     }
 }
 
+/// With --settle: runs the scene that many steps once, with brute force on
+/// every core, into DIR/settled, and returns the checkpoint every run of
+/// the study resumes from.
+fn settle(args: &StudyArgs, dir: &Path) -> CliResult<Option<PathBuf>> {
+    let steps = args.settle();
+    if steps == 0 {
+        return Ok(None);
+    }
+    let out = dir.join("settled");
+    let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
+    let started = Instant::now();
+    let done = Command::new(exe)
+        .arg("run")
+        .arg(args.scene())
+        .args(["--steps", &steps.to_string(), "--quiet", "--overwrite"])
+        .args(["--set", "kernel.method=brute", "--output"])
+        .arg(&out)
+        .output()
+        .map_err(|e| CliError::runtime(format!("cannot start the settling run: {e}")))?;
+    if !done.status.success() {
+        return Err(CliError::runtime(format!(
+            "the settling run ({steps} steps) failed ({}): {}",
+            done.status,
+            String::from_utf8_lossy(&done.stderr).trim()
+        )));
+    }
+    eprintln!(
+        "settled: {steps} steps in {:.1} s; every run resumes from {}",
+        started.elapsed().as_secs_f64(),
+        out.join("checkpoint.h5").display()
+    );
+    Ok(Some(out.join("checkpoint.h5")))
+}
+
 /// Runs one run of a study (under the launcher when distributed, with
 /// metrics; on one node directly, keeping its output for its final state)
-/// and reads its summary and metrics.
-fn run_one(args: &StudyArgs, dir: &Path, spec: Spec, rep: usize) -> CliResult<Ran> {
+/// and reads its summary and metrics. With `start`, the run resumes from
+/// that checkpoint into a directory of its own, made afresh.
+fn run_one(
+    args: &StudyArgs,
+    dir: &Path,
+    spec: Spec,
+    rep: usize,
+    start: Option<&Path>,
+) -> CliResult<Ran> {
     let metrics = dir
         .join("runs")
         .join(format!("{}-r{rep}.jsonl", spec.label));
     let scene = args.scene();
     let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
     let launcher = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
+    let own = dir.join("runs").join(&spec.label);
     let mut command = if spec.ranks == 1 {
         let mut c = Command::new(&exe);
-        c.arg("run")
-            .arg(&scene)
-            .arg("--output")
-            .arg(dir.join("runs").join(&spec.label));
+        c.arg("run").arg(&scene).arg("--output").arg(&own);
         c
     } else {
         // SLURM's srun takes the task count as -n, needs no oversubscription,
@@ -385,6 +425,18 @@ fn run_one(args: &StudyArgs, dir: &Path, spec: Spec, rep: usize) -> CliResult<Ra
             .arg(&metrics);
         c
     };
+    if let Some(from) = start {
+        // A resumed run appends to the output in its directory: each
+        // repeat starts from an empty one.
+        if own.exists() {
+            std::fs::remove_dir_all(&own)
+                .map_err(|e| CliError::runtime(format!("{}: {e}", own.display())))?;
+        }
+        if spec.ranks > 1 {
+            command.arg("--output").arg(&own);
+        }
+        command.arg("--resume").arg(from);
+    }
     let out = command
         .args(["--steps", &args.steps().to_string()])
         .args(["--threads", &spec.threads.to_string()])

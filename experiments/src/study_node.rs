@@ -9,6 +9,7 @@ use crate::error::{CliError, CliResult};
 use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
 use crate::study_cmd::{finding, noise_floor, write, Group, Ran, Spec, Stat};
 use dem::distance::Schedule;
+use dem::effects::GravityParams;
 use dem::scene::Scene;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -55,13 +56,18 @@ pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
         StudyName::Accuracy => {
             let scene = Scene::load(&args.scene()).map_err(|e| CliError::input(e.to_string()))?;
             let threads = args.threads.first().copied().unwrap_or(1);
-            accuracy_settings(scene.dt)
+            // Fifty output steps or so, for the energy books' drift.
+            let every = format!("simulation.output_every={}", (args.steps() / 50).max(1));
+            accuracy_settings(&scene)
                 .into_iter()
-                .map(|(label, sets)| Spec {
+                .map(|(label, mut sets)| Spec {
                     label: label.to_string(),
                     ranks: 1,
                     threads,
-                    args: set(&sets),
+                    args: set(&{
+                        sets.push(every.clone());
+                        sets
+                    }),
                     x: 0.0,
                     series: label.to_string(),
                 })
@@ -72,16 +78,28 @@ pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
 }
 
 /// The kernel settings of the accuracy study, the reference first. The
-/// second run is the reference with its time step changed by 1e-14: how far
-/// trajectories part from a change at the level of rounding alone, the floor
-/// under which no kernel's error can be told from chaos.
-fn accuracy_settings(dt: f64) -> Vec<(&'static str, Vec<String>)> {
+/// second run is the reference with gravity (or, in a scene without it, the
+/// time step, which a resumed run cannot change) scaled by 1 + 1e-14: how
+/// far trajectories part from a change at the level of rounding alone, the
+/// floor under which no kernel's error can be told from chaos.
+fn accuracy_settings(scene: &Scene) -> Vec<(&'static str, Vec<String>)> {
     let v = |x: &[&str]| x.iter().map(|s| format!("kernel.{s}")).collect::<Vec<_>>();
     let mut floor = v(&["method=brute"]);
-    floor.push(format!("simulation.dt={:?}", dt * (1.0 + 1e-14)));
+    let scaled = 1.0 + 1e-14;
+    let label = match scene.effects.get::<GravityParams>() {
+        Some(g) => {
+            let g = g.g.map(|c| format!("{:?}", c * scaled)).join(", ");
+            floor.push(format!("effects.gravity={{ g = [{g}] }}"));
+            "brute-g+1e-14"
+        }
+        None => {
+            floor.push(format!("simulation.dt={:?}", scene.dt * scaled));
+            "brute-dt+1e-14"
+        }
+    };
     vec![
         ("brute", v(&["method=brute"])),
-        ("brute-dt+1e-14", floor),
+        (label, floor),
         (
             "penalty-1it",
             v(&["method=penalty", "iterations=1", "finish_rounds=0"]),
@@ -153,6 +171,11 @@ struct Row<'a> {
     rms: f64,
     max: f64,
     identical: bool,
+    /// The energy books' drift over the run, against its largest kinetic
+    /// energy ([`books_drift`](crate::plot_cmd::books_drift)).
+    drift: f64,
+    /// Contacts deeper than the halos, summed over the steps.
+    deep: u64,
 }
 
 /// A run's time per step (stepping only).
@@ -187,6 +210,7 @@ fn rows<'a>(
                 .map(|((x, y), _)| (x.x - y.x).length())
                 .collect();
             let n = moving.len().max(1) as f64;
+            let drift = crate::plot_cmd::books_drift(&dir.join("runs").join(&r.spec.label))?;
             let s = &r.summary;
             let narrow = s["section_seconds"]["narrow_phase"].as_f64().unwrap_or(0.0);
             let busy = s["narrow_phase_busy_thread_seconds"]
@@ -205,6 +229,8 @@ fn rows<'a>(
                 rms: (moving.iter().map(|d| d * d).sum::<f64>() / n).sqrt(),
                 max: moving.iter().copied().fold(0.0, f64::max),
                 identical: a.bodies == b.bodies,
+                drift,
+                deep: s["deep_contacts"].as_u64().unwrap_or(0),
             })
         })
         .collect()
@@ -244,8 +270,9 @@ pub(crate) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResul
                 })
                 .collect();
             let caption = format!(
-                "{scene}, {} steps: deviation from brute force ({:.2} ms per step) against cost",
-                args.steps(),
+                "{scene}, steps {} to {}: deviation from brute force ({:.2} ms per step) against cost",
+                args.settle(),
+                args.settle() + args.steps(),
                 1e3 * reference
             );
             labelled_points(
@@ -277,13 +304,14 @@ fn csv(rows: &[Row]) -> String {
     let mut s = String::from(
         "label,threads,repeats,seconds_per_step_median,seconds_per_step_min,seconds_per_step_max,\
          narrow_phase_idle_fraction,fallback_rate,\
-         task_fallback_least,task_fallback_most,contacts,rms_deviation_m,max_deviation_m,identical_to_reference\n",
+         task_fallback_least,task_fallback_most,contacts,rms_deviation_m,max_deviation_m,identical_to_reference,\
+         books_drift_over_max_kinetic,deep_contacts\n",
     );
     for r in rows {
         let j = &r.ran.summary;
         writeln!(
             s,
-            "{},{},{},{:e},{:e},{:e},{},{},{},{},{},{:e},{:e},{}",
+            "{},{},{},{:e},{:e},{:e},{},{},{},{},{},{:e},{:e},{},{:e},{}",
             r.ran.spec.label,
             r.ran.spec.threads,
             r.repeats,
@@ -298,6 +326,8 @@ fn csv(rows: &[Row]) -> String {
             r.rms,
             r.max,
             r.identical,
+            r.drift,
+            r.deep,
         )
         .expect("string");
     }
@@ -370,30 +400,38 @@ fn scheduling_figures(
 
 fn table(rows: &[Row]) -> String {
     let mut s = format!(
-        "{:<26} {:>7} {:>24} {:>7} {:>9} {:>10} {:>10} {:>9}\n",
+        "{:<26} {:>7} {:>24} {:>7} {:>9} {:>9} {:>10} {:>10} {:>9} {:>9} {:>6}\n",
         "run",
         "threads",
         "ms/step [min, max]",
         "idle",
         "fallback",
+        "contacts",
         "rms dev m",
         "max dev m",
-        "identical"
+        "identical",
+        "drift",
+        "deep"
     );
     for r in rows {
+        let j = &r.ran.summary;
+        let per_step = j["contacts"].as_f64().unwrap_or(0.0) / j["steps"].as_f64().unwrap_or(1.0);
         writeln!(
             s,
-            "{:<26} {:>7} {:>8.3} [{:.3}, {:.3}] {:>6.1}% {:>8.2}% {:>10.2e} {:>10.2e} {:>9}",
+            "{:<26} {:>7} {:>8.3} [{:.3}, {:.3}] {:>6.1}% {:>8.2}% {:>9.0} {:>10.2e} {:>10.2e} {:>9} {:>9.2e} {:>6}",
             r.ran.spec.label,
             r.ran.spec.threads,
             1e3 * r.seconds_per_step.median,
             1e3 * r.seconds_per_step.lo,
             1e3 * r.seconds_per_step.hi,
             100.0 * r.narrow_idle,
-            100.0 * r.ran.summary["fallback_rate"].as_f64().unwrap_or(0.0),
+            100.0 * j["fallback_rate"].as_f64().unwrap_or(0.0),
+            per_step,
             r.rms,
             r.max,
             if r.identical { "yes" } else { "no" },
+            r.drift,
+            r.deep,
         )
         .expect("string");
     }
