@@ -81,6 +81,12 @@ pub enum Command {
         tridem plot out/hopper --series contacts --series kinetic_translation\n  \
         tridem plot out/hopper --list")]
     Plot(PlotArgs),
+    /// Plot columns of a CSV file against one another: one line per value
+    /// of --by, a marker at every point (SVG and PNG).
+    #[command(after_help = "Example:\n  \
+        tridem chart out/counts.csv --x ranks --y ghosts_max --by partitioner --log-x \\\n      \
+        --output out/ghosts.svg")]
+    Chart(ChartArgs),
     /// A picture (PNG) of an output step of a run (DIR/run.h5): the
     /// particles coloured by a field, the obstacles translucent, and with
     /// --contacts the contact network (line width by normal force).
@@ -239,6 +245,33 @@ pub struct PlotArgs {
     /// Print the names of the run's per-step scalars, one per line.
     #[arg(long, exclusive = true)]
     pub list: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ChartArgs {
+    /// A CSV file with a header line.
+    pub csv: PathBuf,
+    /// The column on the x axis.
+    #[arg(long)]
+    pub x: String,
+    /// The column on the y axis.
+    #[arg(long)]
+    pub y: String,
+    /// The column whose values name the series (default: one series).
+    #[arg(long)]
+    pub by: Option<String>,
+    /// A logarithmic x axis.
+    #[arg(long)]
+    pub log_x: bool,
+    /// Where the y axis starts (default 0; an imbalance starts at 1).
+    #[arg(long)]
+    pub y_from: Option<f64>,
+    /// The caption (default: y against x).
+    #[arg(long)]
+    pub title: Option<String>,
+    /// The SVG to write (a PNG beside it).
+    #[arg(long)]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]

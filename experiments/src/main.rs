@@ -57,6 +57,7 @@ fn main() -> ExitCode {
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
         cli::Command::Plot(args) => plot_cmd::run(&args),
+        cli::Command::Chart(args) => plot_cmd::chart(&args),
         cli::Command::Render(args) => render_cmd::run(&args),
         cli::Command::Study(args) => study_cmd::run(&args),
     };

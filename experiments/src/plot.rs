@@ -369,7 +369,18 @@ pub fn lines(
                 }
             }};
         }
-        if look.log_x {
+        if look.log_x && whole_x {
+            // Ticks at the measured x (rank counts, say): a log axis's own
+            // keys are powers of ten, which a range such as 2-64 lacks.
+            let mut keys: Vec<f64> = series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.0))
+                .collect();
+            keys.sort_by(f64::total_cmp);
+            keys.dedup();
+            let axis = (x0..x1).log_scale().with_key_points(keys);
+            draw!(builder.build_cartesian_2d(axis, y0..y1)?);
+        } else if look.log_x {
             draw!(builder.build_cartesian_2d((x0..x1).log_scale(), y0..y1)?);
         } else {
             draw!(builder.build_cartesian_2d(x0..x1, y0..y1)?);

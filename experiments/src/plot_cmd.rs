@@ -218,3 +218,66 @@ fn order(name: &str) -> (u8, String) {
     };
     (rank, name.to_string())
 }
+
+/// `tridem chart`: columns of a CSV file against one another.
+pub fn chart(args: &crate::cli::ChartArgs) -> CliResult {
+    let path = &args.csv;
+    let fail = |why: String| CliError::input(format!("{}: {why}", path.display()));
+    let text = std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))?;
+    let mut rows = text.lines();
+    let header: Vec<&str> = rows
+        .next()
+        .ok_or_else(|| fail("empty; a header line was expected".into()))?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let column = |name: &str| {
+        header.iter().position(|h| *h == name).ok_or_else(|| {
+            fail(format!(
+                "no column {name}; the columns are {}",
+                header.join(", ")
+            ))
+        })
+    };
+    let (x, y) = (column(&args.x)?, column(&args.y)?);
+    let by = args.by.as_deref().map(column).transpose()?;
+    let mut series: Vec<Series> = Vec::new();
+    for (k, line) in rows.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        let at = |i: usize, what: &str| -> CliResult<f64> {
+            cells
+                .get(i)
+                .and_then(|c| c.parse().ok())
+                .ok_or_else(|| fail(format!("line {}: column {what} holds no number", k + 2)))
+        };
+        let point = (at(x, &args.x)?, at(y, &args.y)?);
+        let name = by.map_or(args.y.clone(), |b| cells.get(b).unwrap_or(&"").to_string());
+        match series.iter_mut().find(|s| s.name == name) {
+            Some(s) => s.points.push(point),
+            None => series.push(Series {
+                name,
+                points: vec![point],
+            }),
+        }
+    }
+    for s in &mut series {
+        s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    let caption = args
+        .title
+        .clone()
+        .unwrap_or_else(|| format!("{} against {}", args.y, args.x));
+    let look = Look {
+        log_x: args.log_x,
+        y_from: args.y_from,
+        markers: true,
+    };
+    lines(&args.output, &caption, (&args.x, &args.y), &series, look)
+        .map_err(|e| CliError::runtime(format!("{}: {e}", args.output.display())))?;
+    eprintln!(
+        "wrote {} and {}",
+        args.output.display(),
+        args.output.with_extension("png").display()
+    );
+    Ok(())
+}

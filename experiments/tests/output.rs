@@ -351,3 +351,55 @@ fn render_draws_a_picture_of_a_step() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `tridem chart` draws a CSV's columns, one series per value of --by, and
+/// refuses a column the file lacks or a cell that is no number, naming the
+/// file and its line.
+#[test]
+fn chart_draws_columns_of_a_csv_and_names_what_is_wrong() {
+    let dir = temp("chart");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("counts.csv");
+    std::fs::write(
+        &csv,
+        "partitioner,ranks,ghosts\nrcb,2,400\nrcb,4,470\nmetis,4,1970\nmetis,2,1000\n",
+    )
+    .unwrap();
+    let (c, svg) = (csv.to_str().unwrap(), dir.join("ghosts.svg"));
+    let args = [
+        "chart",
+        c,
+        "--x",
+        "ranks",
+        "--y",
+        "ghosts",
+        "--by",
+        "partitioner",
+    ];
+    let (code, _, err) =
+        tridem(&[&args[..], &["--log-x", "--output", svg.to_str().unwrap()]].concat());
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        text.contains("rcb") && text.contains("metis"),
+        "both series named"
+    );
+    let png = std::fs::read(svg.with_extension("png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    let (code, _, err) = tridem(&[
+        "chart", c, "--x", "ranks", "--y", "nope", "--output", "x.svg",
+    ]);
+    assert_eq!(code, 2);
+    assert!(
+        err.contains("counts.csv") && err.contains("no column nope") && err.contains("ghosts"),
+        "{err}"
+    );
+    std::fs::write(&csv, "ranks,ghosts\n2,400\n4,many\n").unwrap();
+    let (code, _, err) = tridem(&[
+        "chart", c, "--x", "ranks", "--y", "ghosts", "--output", "x.svg",
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("line 3") && err.contains("ghosts"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
