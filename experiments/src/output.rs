@@ -30,6 +30,14 @@
 //! centres, with its forces and overlap: the force network) and
 //! `contact_points` (the contact points with their force, for glyphs).
 //!
+//! The scene's `[output] fields` chooses what a step writes besides the
+//! states (positions, velocities, angular momenta, orientations, contacts per
+//! body) and the energy books, which are always written: `surface` (the
+//! surface's points per step, the connectivity once, the `surface` grid),
+//! `particles` (the per-body motion fields and the `particles` grid) and
+//! `contacts` (`contact_forces` and the two contact grids). All three by
+//! default; the file's root attribute `fields` lists those written.
+//!
 //! Each step is written and flushed as it is produced, so a run stopped early
 //! keeps everything written before; a run resumed from a checkpoint goes on
 //! appending to the same file. What is written is a [`Frame`]: one process
@@ -140,6 +148,64 @@ fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
+/// What an output step writes besides the bodies' states and the energy
+/// books (the scene's `[output] fields`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Field {
+    Surface,
+    Particles,
+    Contacts,
+}
+
+dem::named_enum!(
+    Field,
+    "output field",
+    [
+        (Surface, "surface"),
+        (Particles, "particles"),
+        (Contacts, "contacts"),
+    ]
+);
+
+/// The fields the scene's `[output]` asks for (every one by default), in
+/// table order; an unknown name is refused at the section's line of `file`.
+pub fn fields_of(scene: &Scene, file: &Path) -> CliResult<Vec<Field>> {
+    let Some(names) = &scene.output.fields else {
+        return Ok(Field::ALL.iter().map(|(f, _)| *f).collect());
+    };
+    let mut asked = Vec::new();
+    for n in names {
+        let f: Field = n.parse().map_err(|e: String| {
+            CliError::input(format!(
+                "{}:{}: output.fields: {e}",
+                file.display(),
+                scene.output.line
+            ))
+        })?;
+        asked.push(f);
+    }
+    Ok(Field::ALL
+        .iter()
+        .map(|(f, _)| *f)
+        .filter(|f| asked.contains(f))
+        .collect())
+}
+
+/// The fields a run's output holds (its root attribute `fields`; a file
+/// without it holds them all).
+pub fn fields_in(file: &hdf5::File) -> Vec<Field> {
+    match file
+        .attr("fields")
+        .and_then(|a| a.read_raw::<hdf5::types::VarLenUnicode>())
+    {
+        Ok(names) => names
+            .iter()
+            .filter_map(|n| n.as_str().parse().ok())
+            .collect(),
+        Err(_) => Field::ALL.iter().map(|(f, _)| *f).collect(),
+    }
+}
+
 /// What a run's output is made of, whatever its state: the shapes and
 /// materials, and which body has which (obstacles included, in id order).
 #[derive(Debug, Clone)]
@@ -149,13 +215,15 @@ pub struct Layout {
     pub materials: Vec<String>,
     /// Runs of bodies alike: material, mass, inverse inertia (the census).
     pub census: Census,
+    /// What each step writes besides the states and the books.
+    pub fields: Vec<Field>,
 }
 
 impl Layout {
-    /// The layout of the whole scene, however many of its bodies `scene`
-    /// holds.
-    pub fn of(scene: &Scene) -> Layout {
-        Layout {
+    /// The layout of the whole scene (read from `file`), however many of
+    /// its bodies `scene` holds.
+    pub fn of(scene: &Scene, file: &Path) -> CliResult<Layout> {
+        Ok(Layout {
             shapes: scene.world.shapes.clone(),
             body_shapes: scene.census.shapes().collect(),
             materials: scene
@@ -165,7 +233,12 @@ impl Layout {
                 .map(|m| m.name.clone())
                 .collect(),
             census: scene.census.clone(),
-        }
+            fields: fields_of(scene, file)?,
+        })
+    }
+
+    pub fn has(&self, f: Field) -> bool {
+        self.fields.contains(&f)
     }
 
     /// Per body, in id order: what its run says of it.
@@ -224,8 +297,20 @@ impl Output {
                 .create("triangles")
                 .map_err(h5err)?;
         }
+        let names: Vec<hdf5::types::VarLenUnicode> = layout
+            .fields
+            .iter()
+            .map(|f| f.name().parse().expect("a field's name is text"))
+            .collect();
+        file.new_attr::<hdf5::types::VarLenUnicode>()
+            .shape(names.len())
+            .create("fields")
+            .and_then(|a| a.write_raw(&names))
+            .map_err(h5err)?;
         let mut out = Output::of(file, dir, layout);
-        out.write_connectivity()?;
+        if layout.has(Field::Surface) {
+            out.write_connectivity()?;
+        }
         out.write_bodies()?;
         out.file.create_group("steps").map_err(h5err)?;
         Ok(out)
@@ -331,11 +416,25 @@ impl Output {
         let group = file
             .group("steps")
             .map_err(|e| fail(format!("not the output of tridem run: {e}")))?;
-        let triangles = file
-            .dataset("surface/body")
-            .and_then(|d| file.group("bodies").map(|_| d))
-            .map_err(|e| fail(format!("not the output of this tridem run: {e}")))?
-            .size();
+        file.group("bodies")
+            .map_err(|e| fail(format!("not the output of this tridem run: {e}")))?;
+        let written = fields_in(&file);
+        if written != layout.fields {
+            let names = |f: &[Field]| f.iter().map(|f| f.name()).collect::<Vec<_>>().join(", ");
+            return Err(fail(format!(
+                "written with the output fields [{}], the resumed run's are [{}]; \
+                 write it to another directory",
+                names(&written),
+                names(&layout.fields)
+            )));
+        }
+        let triangles = match layout.has(Field::Surface) {
+            true => file
+                .dataset("surface/body")
+                .map_err(|e| fail(format!("not the output of this tridem run: {e}")))?
+                .size(),
+            false => 0,
+        };
         let mut steps = Vec::new();
         for name in group.member_names().map_err(|e| fail(e.to_string()))? {
             let step = |e: hdf5::Error| fail(format!("steps/{name}: {e}"));
@@ -367,7 +466,7 @@ impl Output {
             )));
         }
         let mut out = Output::of(file, dir, layout);
-        if triangles != out.triangles {
+        if layout.has(Field::Surface) && triangles != out.triangles {
             return Err(fail(format!(
                 "its surface has {triangles} triangles, the resumed run's {}",
                 out.triangles
@@ -440,10 +539,17 @@ impl Output {
             .create("time")
             .and_then(|a| a.write_scalar(&frame.time))
             .map_err(h5err)?;
-        self.write_motion(&g, frame)?;
-        self.write_surface(&g, frame)?;
+        if self.layout.has(Field::Particles) {
+            self.write_motion(&g, frame)?;
+        }
+        if self.layout.has(Field::Surface) {
+            self.write_surface(&g, frame)?;
+        }
         write_energies(&g, frame)?;
-        let nc = write_contacts(&g, frame, &self.obstacle)?;
+        let nc = match self.layout.has(Field::Contacts) {
+            true => write_contacts(&g, frame, &self.obstacle)?,
+            false => 0,
+        };
         self.file.flush().map_err(h5err)?;
         self.steps.push(StepIndex {
             k,
@@ -536,10 +642,16 @@ impl Output {
         let mut x = String::new();
         let _ = writeln!(x, r#"<?xml version="1.0" ?>"#);
         let _ = writeln!(x, r#"<Xdmf Version="3.0"><Domain>"#);
-        self.xdmf_collection(&mut x, "surface", |x, s| self.xdmf_surface(x, s));
-        self.xdmf_collection(&mut x, "particles", |x, s| self.xdmf_particles(x, s));
-        self.xdmf_collection(&mut x, "contacts", xdmf_contact_lines);
-        self.xdmf_collection(&mut x, "contact_points", xdmf_contact_points);
+        if self.layout.has(Field::Surface) {
+            self.xdmf_collection(&mut x, "surface", |x, s| self.xdmf_surface(x, s));
+        }
+        if self.layout.has(Field::Particles) {
+            self.xdmf_collection(&mut x, "particles", |x, s| self.xdmf_particles(x, s));
+        }
+        if self.layout.has(Field::Contacts) {
+            self.xdmf_collection(&mut x, "contacts", xdmf_contact_lines);
+            self.xdmf_collection(&mut x, "contact_points", xdmf_contact_points);
+        }
         let _ = writeln!(x, "</Domain></Xdmf>");
         let path = self.dir.join("run.xmf");
         // Write beside and rename, so the index on disk is never half written.

@@ -4,6 +4,7 @@
 
 use crate::cli::{ColourBy, RenderArgs, View};
 use crate::error::{CliError, CliResult};
+use crate::output::Field;
 use crate::raster::{category, scale, Camera, Picture};
 use glam::DVec3;
 use ndarray::{Array1, Array2};
@@ -31,6 +32,25 @@ pub fn run(args: &RenderArgs) -> CliResult {
     let path = args.dir.join("run.h5");
     let fail = |why: String| CliError::input(format!("{}: {why}", path.display()));
     let file = hdf5::File::open(&path).map_err(|e| fail(e.to_string()))?;
+    let fields = crate::output::fields_in(&file);
+    let needs = [
+        (Field::Surface, true, "a picture"),
+        (
+            Field::Particles,
+            args.color_by == ColourBy::Speed,
+            "--color-by speed",
+        ),
+        (Field::Contacts, args.contacts, "--contacts"),
+    ];
+    if let Some((f, _, what)) = needs
+        .iter()
+        .find(|(f, asked, _)| *asked && !fields.contains(f))
+    {
+        return Err(fail(format!(
+            "written without the {} field (its scene's [output] fields), which {what} needs",
+            f.name()
+        )));
+    }
     let surface =
         read_surface(&file).map_err(|e| fail(format!("not the output of tridem run: {e}")))?;
     let count = file.group("steps").map_err(|e| fail(e.to_string()))?.len() as usize;

@@ -35,6 +35,7 @@ pub fn run(args: &RunArgs) -> CliResult {
     // Not used on one process, but a name no partitioner, exchange or
     // weighing knows is an error wherever the scene runs.
     crate::parallel::settings(args, &scene)?;
+    crate::output::fields_of(&scene, &args.scene)?;
     rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build_global()
@@ -152,7 +153,7 @@ impl RunFiles {
             dir,
             args.resume.as_deref(),
             args.overwrite,
-            &crate::output::Layout::of(scene),
+            &crate::output::Layout::of(scene, &args.scene)?,
             sim.world.time,
         )?;
         Ok(RunFiles {

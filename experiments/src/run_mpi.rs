@@ -89,6 +89,11 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         }
     }
     let settings = agree(comm, crate::parallel::settings(args, &scene))?;
+    let layout = match me {
+        0 => Layout::of(&scene, &args.scene).map(Some),
+        _ => crate::output::fields_of(&scene, &args.scene).map(|_| None),
+    };
+    let layout = agree(comm, layout)?;
     // Cores are shared by the ranks of a node: one thread each unless told.
     // The main thread is one of the pool's: a parallel section starts in
     // place instead of being handed to another thread and waited for (which
@@ -112,7 +117,6 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         None => Start::Fresh,
     };
     let told = describe(args, &scene, steps);
-    let layout = (me == 0).then(|| Layout::of(&scene));
     let dist = DistributedSimulation::new(comm, &mut scene, start_with, settings);
     let dist = agree(
         comm,

@@ -189,6 +189,25 @@ fn contact_lines_join_the_bodies_in_contact() {
 #[test]
 fn the_xdmf_index_names_only_what_the_file_holds() {
     let dir = hopper_run("xdmf");
+    let items = xdmf_items_in_file(&dir);
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
+    let steps = f.group("steps").unwrap().len() as usize;
+    for grid in ["surface", "particles", "contacts", "contact_points"] {
+        let name = format!("<Grid Name=\"{grid}\" GridType=\"Collection\"");
+        assert!(xmf.contains(&name), "no {grid} collection");
+        let per_step = (0..steps)
+            .filter(|k| xmf.contains(&format!("<Grid Name=\"{grid}{k}\"")))
+            .count();
+        assert_eq!(per_step, steps, "{grid}");
+    }
+    assert!(items > 20 * steps, "{items} data items");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Checks that every data item of `DIR/run.xmf` is a dataset of `run.h5`
+/// of the stated dimensions; returns how many there are.
+fn xdmf_items_in_file(dir: &std::path::Path) -> usize {
     let f = hdf5::File::open(dir.join("run.h5")).unwrap();
     let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
     let mut items = 0;
@@ -215,16 +234,88 @@ fn the_xdmf_index_names_only_what_the_file_holds() {
         assert_eq!(shape, dims, "{path}");
         items += 1;
     }
-    let steps = f.group("steps").unwrap().len() as usize;
-    for grid in ["surface", "particles", "contacts", "contact_points"] {
-        let name = format!("<Grid Name=\"{grid}\" GridType=\"Collection\"");
-        assert!(xmf.contains(&name), "no {grid} collection");
-        let per_step = (0..steps)
-            .filter(|k| xmf.contains(&format!("<Grid Name=\"{grid}{k}\"")))
-            .count();
-        assert_eq!(per_step, steps, "{grid}");
-    }
-    assert!(items > 20 * steps, "{items} data items");
+    items
+}
+
+/// The scene's `[output] fields` chooses what a step writes: only the
+/// particles here, so no surface or contacts in run.h5 or run.xmf, a
+/// smaller file, and a render that needs the surface is refused; a name
+/// no field has is refused at its line; a resumed run must write what the
+/// run it continues wrote.
+#[test]
+fn output_fields_choose_what_each_step_writes() {
+    let dir = temp("fields");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let hopper = std::fs::read_to_string(scene("hopper.toml")).unwrap();
+    let with = |fields: &str, name: &str| {
+        let text = format!("{hopper}\n[output]\nfields = {fields}\n");
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let run = |scene: &str, out: &str, extra: &[&str]| {
+        let out = dir.join(out);
+        let o = out.to_str().unwrap().to_string();
+        let args = [
+            &["run", scene, "--steps", "2000", "--quiet", "--output", &o][..],
+            extra,
+        ]
+        .concat();
+        let (code, _, err) = tridem(&args);
+        (code, err, out)
+    };
+    let all = with(r#"["surface", "particles", "contacts"]"#, "all.toml");
+    let few = with(r#"["particles"]"#, "few.toml");
+    let (code, err, whole) = run(&all, "whole", &[]);
+    assert_eq!(code, 0, "{err}");
+    let (code, err, lean) = run(&few, "lean", &[]);
+    assert_eq!(code, 0, "{err}");
+    let f = hdf5::File::open(lean.join("run.h5")).unwrap();
+    let g = f.group("steps/2").unwrap();
+    assert!(g.dataset("speeds").is_ok() && g.dataset("positions").is_ok());
+    assert!(g.group("surface").is_err() && g.group("contact_forces").is_err());
+    assert!(
+        f.group("surface").is_err(),
+        "no connectivity without the surface"
+    );
+    let xmf = std::fs::read_to_string(lean.join("run.xmf")).unwrap();
+    assert!(xmf.contains("<Grid Name=\"particles\""));
+    assert!(!xmf.contains("<Grid Name=\"surface\"") && !xmf.contains("<Grid Name=\"contacts\""));
+    assert!(xdmf_items_in_file(&lean) > 0);
+    let size = |d: &std::path::Path| std::fs::metadata(d.join("run.h5")).unwrap().len();
+    assert!(
+        2 * size(&lean) < size(&whole),
+        "{} against {}",
+        size(&lean),
+        size(&whole)
+    );
+    // The states are the same whatever is written.
+    let w = hdf5::File::open(whole.join("run.h5")).unwrap();
+    let p = |f: &hdf5::File| read2(&f.group("steps/2").unwrap(), "positions");
+    assert_eq!(p(&f), p(&w));
+    drop((g, f, w));
+    let (code, _, err) = tridem(&["render", lean.to_str().unwrap()]);
+    assert_eq!(code, 2);
+    assert!(err.contains("without the surface field"), "{err}");
+    // Resumed with other fields: refused, the file untouched.
+    let before = std::fs::read(lean.join("run.h5")).unwrap();
+    let c = lean.join("checkpoint.h5");
+    let (code, err, _) = run(&all, "lean", &["--resume", c.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("output fields [particles]"), "{err}");
+    assert_eq!(std::fs::read(lean.join("run.h5")).unwrap(), before);
+    let bad = with(r#"["particles", "stress"]"#, "bad.toml");
+    let (code, err, out) = run(&bad, "bad", &[]);
+    assert_eq!(code, 2);
+    let line = hopper.lines().count() + 2;
+    assert!(
+        err.contains(&format!(
+            "bad.toml:{line}: output.fields: unknown output field `stress`"
+        )) && err.contains("surface, particles, contacts"),
+        "{err}"
+    );
+    assert!(!out.exists(), "a refused run writes nothing");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -7,7 +7,10 @@ use super::shapes::{check_motion, make_shape, placements, random_rotation, small
 use super::spec::{
     KernelSpec, MaterialSpec, ObstacleSpec, ParticleSpec, SceneFile, SimulationSpec,
 };
-use super::{positive, Census, Ctx, Deal, Parallel, Scene, SceneError, MAX_PARTICLES, MAX_STEPS};
+use super::{
+    positive, Census, Ctx, Deal, OutputSection, Parallel, Scene, SceneError, MAX_PARTICLES,
+    MAX_STEPS,
+};
 use crate::body::Body;
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
 use crate::effects::{ContactParams, Effects, KINDS};
@@ -96,6 +99,13 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
         None => Parallel::default(),
         Some(p) => parallel(ctx, p.span(), p.into_inner()),
     };
+    let output = match spec.output {
+        None => OutputSection::default(),
+        Some(o) => OutputSection {
+            line: ctx.line_of(o.span().start),
+            ..o.into_inner()
+        },
+    };
     Ok(Scene {
         world: bodies.world,
         effects,
@@ -106,6 +116,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
         kernel,
         warnings: bodies.warnings,
         parallel,
+        output,
         census: bodies.census,
         deal,
         allow_deep_contacts: sim.allow_deep_contacts,
@@ -515,7 +526,6 @@ fn stable_step(materials: &[Material], census: &Census) -> f64 {
     2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
 }
 
-/// `[parallel]`: names the command line takes.
 /// `[parallel]`, with its line (its names are checked where they are used).
 fn parallel(ctx: &Ctx, span: Range<usize>, p: Parallel) -> Parallel {
     Parallel {

@@ -48,6 +48,9 @@
 //! # repartition_when = 1.2     # or when the busy time's max/mean exceeds this
 //! exchange = "nonblocking"     # or "blocking"
 //! weights = "pairs"            # triangles, pairs or time (docs/distributed.md)
+//!
+//! [output]               # what an output step writes besides the states
+//! fields = ["surface", "particles", "contacts"]   # the default (docs/output.md)
 //! ```
 
 mod build;
@@ -100,6 +103,19 @@ pub struct Parallel {
     pub line: usize,
 }
 
+/// What each output step writes besides the bodies' states and the energy
+/// books (`[output]`), by name as the scene gives them: the output's writer
+/// owns the names and checks them, naming `line`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSection {
+    /// `None`: every field.
+    pub fields: Option<Vec<String>>,
+    /// The line of `[output]` in the scene file (0: none).
+    #[serde(skip)]
+    pub line: usize,
+}
+
 /// A parsed scene: the initial world and how to run it.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -114,6 +130,7 @@ pub struct Scene {
     /// Set when the step exceeds the stable one and the scene allowed it.
     pub warnings: Vec<String>,
     pub parallel: Parallel,
+    pub output: OutputSection,
     /// The whole scene's bodies in brief, however few of them `world` holds.
     pub census: Census,
     /// Which of the scene's particles `world` holds.

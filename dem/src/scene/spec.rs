@@ -1,6 +1,6 @@
 //! The scene file as TOML has it, before any check: what serde reads.
 
-use super::Parallel;
+use super::{OutputSection, Parallel};
 use crate::distance::{Fallback, Threading};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -21,6 +21,8 @@ pub(super) struct SceneFile {
     pub(super) kernel: Option<Spanned<KernelSpec>>,
     #[serde(default)]
     pub(super) parallel: Option<Spanned<Parallel>>,
+    #[serde(default)]
+    pub(super) output: Option<Spanned<OutputSection>>,
 }
 
 #[derive(Debug, Deserialize)]
