@@ -104,13 +104,18 @@ pub(crate) fn noise_floor(groups: &[Group], value: impl Fn(&Ran) -> f64) -> Opti
     let twin = groups
         .iter()
         .find(|g| g.spec.label == again(&first.spec.label))?;
+    Some(floor_between(first, twin, value))
+}
+
+/// The noise floor of two settings that do the same work: the gap between
+/// their medians, or half the spread of either's runs, relative to the
+/// first's median, whichever is largest.
+pub(crate) fn floor_between(first: &Group, twin: &Group, value: impl Fn(&Ran) -> f64) -> f64 {
     let (a, b) = (first.stat(&value), twin.stat(&value));
     let rel = |s: &Stat| (s.hi - s.lo) / (2.0 * s.median);
-    Some(
-        ((a.median - b.median).abs() / a.median)
-            .max(rel(&a))
-            .max(rel(&b)),
-    )
+    ((a.median - b.median).abs() / a.median)
+        .max(rel(&a))
+        .max(rel(&b))
 }
 
 /// The summary CSV's columns after the run's label, ranks and setting:

@@ -7,7 +7,7 @@ use crate::checkpoint_file;
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{CliError, CliResult};
 use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
-use crate::study_cmd::{finding, noise_floor, write, Group, Ran, Spec, Stat};
+use crate::study_cmd::{finding, floor_between, noise_floor, write, Group, Ran, Spec, Stat};
 use dem::distance::Schedule;
 use dem::effects::GravityParams;
 use dem::scene::Scene;
@@ -289,15 +289,61 @@ pub(crate) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResul
         }
     }
     print!("{}", table(&rows));
-    if let Some(floor) = noise_floor(groups, stepping) {
+    // The accuracy study's chaos-floor run does brute force's work: the two
+    // brute-force runs' times are its noise floor.
+    let floor = match (args.name, groups) {
+        (StudyName::Accuracy, [brute, twin, ..]) => Some(floor_between(brute, twin, stepping)),
+        _ => noise_floor(groups, stepping),
+    };
+    if let Some(floor) = floor {
+        let how = match args.name {
+            StudyName::Accuracy => "brute force's two runs",
+            _ => "the same setting under two labels",
+        };
         println!(
-            "noise floor: {:.1}% of the time per step (the same setting under two labels)",
+            "noise floor: {:.1}% of the time per step ({how})",
             100.0 * floor
         );
         println!("{}", finding(groups, stepping, floor));
     }
+    if args.name == StudyName::Accuracy {
+        println!("{}", exactness(&rows));
+    }
     println!("data and figures in {}", dir.display());
     Ok(())
+}
+
+/// What exactness costs, in a sentence: the settings that give brute
+/// force's trajectories bit for bit, and of the others the one whose
+/// deviation is least, against the chaos floor (the second row).
+fn exactness(rows: &[Row]) -> String {
+    let exact: Vec<&str> = rows
+        .iter()
+        .filter(|r| r.identical)
+        .map(|r| r.ran.spec.label.as_str())
+        .collect();
+    let floor = rows.get(1).map_or(0.0, |r| r.rms);
+    let closest = rows
+        .iter()
+        .skip(2)
+        .filter(|r| !r.identical)
+        .min_by(|a, b| a.rms.total_cmp(&b.rms));
+    let approximate = match closest {
+        Some(r) => format!(
+            "the closest approximate setting, {}, deviates {:.1e} m (RMS), {:.1e} times the chaos \
+             floor, with {} deep contacts and books' drift {:.2e}",
+            r.ran.spec.label,
+            r.rms,
+            r.rms / floor.max(f64::MIN_POSITIVE),
+            r.deep,
+            r.drift
+        ),
+        None => "no setting is approximate".into(),
+    };
+    format!(
+        "exact (brute force's trajectories bit for bit): {}; {approximate}",
+        exact.join(", ")
+    )
 }
 
 fn csv(rows: &[Row]) -> String {

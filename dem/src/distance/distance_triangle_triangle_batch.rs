@@ -13,7 +13,7 @@
 // Index loops over the lanes are the shape the vectoriser recognises best.
 #![allow(clippy::needless_range_loop)]
 
-use super::isa::Isa;
+use super::isa::{Isa, Supported};
 use super::pair_lanes::{load_pairs, store_answers, AnswerLanes, PairLanes};
 #[cfg(target_arch = "x86_64")]
 use super::pair_lanes::{
@@ -301,7 +301,7 @@ fn answers<'a>((distance, p, q): &'a (L, V3, V3)) -> AnswerLanes<'a, LANES> {
 }
 
 /// # Safety
-/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (`Isa::Avx512.available()`).
+/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (a `Supported` of `Isa::Avx512`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
@@ -311,7 +311,7 @@ unsafe fn batch_avx512<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
 }
 
 /// # Safety
-/// The CPU must have AVX2 and FMA (`Isa::Avx2.available()`).
+/// The CPU must have AVX2 and FMA (a `Supported` of `Isa::Avx2` or above).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn batch_avx2<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
@@ -320,18 +320,19 @@ unsafe fn batch_avx2<P: PairSource + ?Sized>(pairs: &P, out: &mut [Closest]) {
     unsafe { store_answers_avx2(&answers(&found), Solver::Brute, out) };
 }
 
-/// Exact distances of up to `LANES` pairs at once (`out.len() == pairs.len()`).
+/// Exact distances of up to `LANES` pairs at once (`out.len() == pairs.len()`),
+/// on an instruction set this CPU is proved to run.
 pub fn distance_triangle_triangle_batch<P: PairSource + ?Sized>(
     pairs: &P,
-    isa: Isa,
+    isa: Supported,
     out: &mut [Closest],
 ) {
     debug_assert!(pairs.len() <= LANES && pairs.len() == out.len());
     if pairs.is_empty() {
         return;
     }
-    match isa.available() {
-        // SAFETY: `Isa::available` checked these features on this CPU.
+    match isa.isa() {
+        // SAFETY: a `Supported` proves these features on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 => unsafe { batch_avx512(pairs, out) },
         #[cfg(target_arch = "x86_64")]
@@ -356,7 +357,7 @@ pub fn distance_triangle_triangle_many_on<P: PairSource + ?Sized>(
     out: &mut [Closest],
 ) {
     assert_eq!(pairs.len(), out.len());
-    let isa = isa.available();
+    let isa = isa.supported();
     for r in chunk_ranges(pairs.len(), LANES) {
         distance_triangle_triangle_batch(&Window::new(pairs, r.clone()), isa, &mut out[r]);
     }

@@ -14,7 +14,7 @@
 use super::distance_triangle_triangle_batch::{
     distance_triangle_triangle_batch, LANES as BRUTE_LANES,
 };
-use super::isa::Isa;
+use super::isa::{Isa, Supported};
 use super::pair_source::{chunk_ranges, PairSource, Window};
 use super::penalty::{
     penalty_batch_on, penalty_many_on, PenaltyParams, PenaltyStats, UnsupportedBatch,
@@ -239,7 +239,7 @@ fn serial_chunk<P: PairSource + ?Sized>(
         pairs: pairs.len(),
         ..Counts::default()
     };
-    let isa = Isa::detect();
+    let isa = Isa::detect().supported();
     match opts.method {
         Method::Brute => {
             for r in chunk_ranges(pairs.len(), BRUTE_LANES) {
@@ -266,7 +266,7 @@ fn serial_chunk<P: PairSource + ?Sized>(
 fn penalty_share<const N: usize, P: PairSource + ?Sized>(
     pairs: &P,
     opts: &Options,
-    isa: Isa,
+    isa: Supported,
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
     counts: &mut Counts,
@@ -278,7 +278,8 @@ fn penalty_share<const N: usize, P: PairSource + ?Sized>(
         if opts.batch == N {
             penalty_batch_on::<N, _>(&p, &opts.penalty, isa, o, s);
         } else {
-            penalty_many_on(&p, opts.batch, &opts.penalty, isa, o, s).expect("batch size checked");
+            penalty_many_on(&p, opts.batch, &opts.penalty, isa.isa(), o, s)
+                .expect("batch size checked");
         }
         let certified = s.iter().filter(|x| x.converged).count();
         counts.certified += certified;
@@ -312,7 +313,7 @@ fn penalty_share<const N: usize, P: PairSource + ?Sized>(
 /// 200,000 random pairs, each of the 6% failed pairs then cost two to three
 /// times a brute-force pair; see docs/distance.md).
 struct FailedPairs {
-    isa: Isa,
+    isa: Supported,
     /// Indices into the pairs of the waiting pairs, and copies of them.
     index: [usize; FAILED_QUEUE],
     buf: [(Triangle, Triangle); FAILED_QUEUE],
@@ -320,7 +321,7 @@ struct FailedPairs {
 }
 
 impl FailedPairs {
-    fn new(isa: Isa) -> Self {
+    fn new(isa: Supported) -> Self {
         let zero = [glam::DVec3::ZERO; 3];
         FailedPairs {
             isa,

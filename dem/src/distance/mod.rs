@@ -38,7 +38,7 @@ pub use hybrid::{
     distance_many, distance_many_serial, distances, Counts, Fallback, Method, Options, Schedule,
     Threading,
 };
-pub use isa::Isa;
+pub use isa::{Isa, Supported};
 pub use pair_source::PairSource;
 pub use penalty::{
     penalty_many, penalty_many_on, penalty_scalar, PenaltyParams, PenaltyStats, UnsupportedBatch,

@@ -15,7 +15,7 @@
 // Index loops over the lanes are the shape the vectoriser recognises best.
 #![allow(clippy::needless_range_loop)]
 
-use super::isa::Isa;
+use super::isa::{Isa, Supported};
 use super::pair_source::PairSource;
 use super::{Closest, Solver, Triangle};
 use glam::DVec3;
@@ -258,20 +258,20 @@ pub(crate) unsafe fn store_answers_avx2<const N: usize>(
     }
 }
 
-/// [`store_answers_avx512`] or [`store_answers_avx2`] where the CPU has the
-/// instructions (`isa` from [`Isa::available`]), [`store_answers`] otherwise.
+/// [`store_answers_avx512`] or [`store_answers_avx2`] where the CPU is
+/// proved to have the instructions, [`store_answers`] otherwise.
 #[inline]
 pub(crate) fn store_answers_on<const N: usize>(
     ans: &AnswerLanes<'_, N>,
     solver: Solver,
-    isa: Isa,
+    isa: Supported,
     out: &mut [Closest],
 ) {
-    match isa {
-        // SAFETY: `Isa::available` checked AVX-512F on this CPU.
+    match isa.isa() {
+        // SAFETY: a `Supported` proves AVX-512F on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 => unsafe { store_answers_avx512(ans, solver, out) },
-        // SAFETY: `Isa::available` checked AVX2 on this CPU.
+        // SAFETY: a `Supported` proves AVX2 on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 => unsafe { store_answers_avx2(ans, solver, out) },
         _ => store_answers(ans, solver, out),

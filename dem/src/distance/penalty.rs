@@ -20,7 +20,7 @@
 //! All parameters are relative, so results do not depend on the size or
 //! position of the triangles.
 
-use super::isa::Isa;
+use super::isa::{Isa, Supported};
 use super::lanes::{F, V3};
 use super::pair_lanes::{load_pairs, store_answers_on, AnswerLanes, PairLanes};
 #[cfg(target_arch = "x86_64")]
@@ -214,7 +214,7 @@ fn kernel<const N: usize>(lanes: &PairLanes<N>, prm: &PenaltyParams) -> (Finishe
 // (penalty 52 -> 96 ns/pair).
 
 /// # Safety
-/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (`Isa::Avx512.available()`).
+/// The CPU must have AVX-512F/DQ/VL, AVX2 and FMA (a `Supported` of `Isa::Avx512`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 unsafe fn kernel_avx512<const N: usize, P: PairSource + ?Sized>(
@@ -226,7 +226,7 @@ unsafe fn kernel_avx512<const N: usize, P: PairSource + ?Sized>(
 }
 
 /// # Safety
-/// The CPU must have AVX2 and FMA (`Isa::Avx2.available()`).
+/// The CPU must have AVX2 and FMA (a `Supported` of `Isa::Avx2` or above).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn kernel_avx2<const N: usize, P: PairSource + ?Sized>(
@@ -240,10 +240,10 @@ unsafe fn kernel_avx2<const N: usize, P: PairSource + ?Sized>(
 fn kernel_on<const N: usize, P: PairSource + ?Sized>(
     pairs: &P,
     prm: &PenaltyParams,
-    isa: Isa,
+    isa: Supported,
 ) -> (Finished<N>, [u8; N]) {
-    match isa {
-        // SAFETY: `isa` comes from `Isa::available`, so this CPU has the features.
+    match isa.isa() {
+        // SAFETY: a `Supported` proves these features on this CPU.
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 => unsafe { kernel_avx512(pairs, prm) },
         #[cfg(target_arch = "x86_64")]
@@ -253,11 +253,11 @@ fn kernel_on<const N: usize, P: PairSource + ?Sized>(
 }
 
 /// Runs the penalty kernel on up to `N` pairs (one SIMD batch) and writes the
-/// answers and per-pair statistics. `isa` must be available on this CPU.
+/// answers and per-pair statistics, on an instruction set this CPU runs.
 pub(crate) fn penalty_batch_on<const N: usize, P: PairSource + ?Sized>(
     pairs: &P,
     prm: &PenaltyParams,
-    isa: Isa,
+    isa: Supported,
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) {
@@ -266,8 +266,8 @@ pub(crate) fn penalty_batch_on<const N: usize, P: PairSource + ?Sized>(
     // 4: 121 against 66 ns/pair on one AVX-512 machine, 90 against 54 on another;
     // docs/distance.md); AVX-512 CPUs have AVX2 and FMA too. Answers are the
     // same on every instruction set.
-    let isa = match (isa, N) {
-        (Isa::Avx512, 2 | 4) => Isa::Avx2,
+    let isa = match N {
+        2 | 4 => isa.at_most(Isa::Avx2),
         _ => isa,
     };
     let (f, iters) = kernel_on::<N, _>(pairs, prm, isa);
@@ -309,7 +309,7 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
     out: &mut [Closest],
     stats: &mut [PenaltyStats],
 ) -> Result<(), UnsupportedBatch> {
-    let isa = isa.available();
+    let isa = isa.supported();
     assert_eq!(pairs.len(), out.len());
     assert_eq!(pairs.len(), stats.len());
     macro_rules! run {
@@ -342,7 +342,13 @@ pub fn penalty_many_on<P: PairSource + ?Sized>(
 pub fn penalty_scalar(a: &Triangle, b: &Triangle, prm: &PenaltyParams) -> (Closest, PenaltyStats) {
     let mut out = [Closest::UNSET];
     let mut stats = [PenaltyStats::default()];
-    penalty_batch_on::<1, _>(&[(*a, *b)][..], prm, Isa::Baseline, &mut out, &mut stats);
+    penalty_batch_on::<1, _>(
+        &[(*a, *b)][..],
+        prm,
+        Isa::Baseline.supported(),
+        &mut out,
+        &mut stats,
+    );
     (out[0], stats[0])
 }
 
