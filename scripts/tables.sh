@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Regenerates docs/tables.md: the current results table of each area
-# (distance kernels, the DEM on one node, contact culling, the partitioners, the DEM across
+# (distance kernels, the DEM on one node, contact culling, validation, the partitioners, the DEM across
 # ranks: ranks against threads, memory, and the projection to the paper's
 # run; the output's size), each under the command that printed it, stamped with the CPU model,
 # the cores and the commit. About fifteen minutes on two cores.
@@ -54,6 +54,17 @@ section, and the reference workload's speed-up in the same minutes (docs/dem.md,
   echo
 } >> "$page"
 echo "Contact culling: done" >&2
+{
+  echo "## Validation"
+  echo
+  echo "Contact mechanics where faces, edges and corners touch, on shapes and angles no"
+  echo "other test uses, with rotation on and no global damping: each case's limit and what"
+  echo "it measured (docs/dem.md, \"Validation\")."
+  echo
+  scripts/validation-table.sh
+  echo
+} >> "$page"
+echo "Validation: done" >&2
 {
   echo "## Partitioners"
   echo

@@ -84,10 +84,12 @@ fn boxed(size: DVec3, subdivide: usize) -> String {
     )
 }
 
-/// One row of the validation table docs/dem.md shows (printed with
-/// `--nocapture`).
+/// One row of the validation table (docs/tables.md, "Validation", printed
+/// with `--nocapture` and gathered by scripts/validation-table.sh): a
+/// markdown row, with the `|` of the case's formula escaped.
 fn report(case: &str, limit: &str, measured: f64) {
-    println!("validation | {case} | {limit} | {measured:.3e} |");
+    let case = case.replace('|', "\\|");
+    println!("validation | {case} | ≤ {limit} | {measured:.3e} |");
 }
 
 fn run(sim: &mut Simulation, steps: u64) {
@@ -310,7 +312,7 @@ fn face_edge_and_corner_impacts_rebound_with_the_set_restitution() {
 #[test]
 fn impacts_do_not_depend_on_size_or_place() {
     let corner = diagonal_down(DVec3::new(1.0, -1.0, -1.0));
-    for rotation in [FACE, EDGE, corner] {
+    for (what, rotation) in [("face", FACE), ("edge", EDGE), ("corner", corner)] {
         let (reference, _) = bounce(0.6, rotation, 1.0, DVec3::ZERO);
         for (s, origin) in [
             (1e-3, DVec3::ZERO),
@@ -320,7 +322,7 @@ fn impacts_do_not_depend_on_size_or_place() {
             let (e, _) = bounce(0.6, rotation, s, origin);
             report(
                 &format!(
-                    "impact at scale {s:e}, {:e} m from the origin: |e − e_unit|",
+                    "{what} impact at scale {s:e}, {:e} m from the origin: |e − e_unit|",
                     origin.length()
                 ),
                 "1e-6",
