@@ -20,11 +20,50 @@ pub struct Body {
     /// Inverse inertia tensor in body axes (zero for an obstacle).
     pub inv_inertia_body: DMat3,
     pub inertia_body: DMat3,
+    /// An obstacle's prescribed motion (`None`: it stands still, or the body
+    /// is a particle, moved by its forces).
+    pub drive: Option<Box<Drive>>,
+}
+
+/// The prescribed motion of an obstacle: a constant velocity of its frame's
+/// origin and a constant angular velocity about that origin, from its pose
+/// at time 0. Its pose is a function of the time alone ([`Drive::pose`]), so
+/// every process that knows the time places it to the same bits, whatever
+/// it did before.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drive {
+    /// The pose at time 0.
+    pub x0: DVec3,
+    pub q0: DQuat,
+    pub velocity: DVec3,
+    /// World axes, rad/s.
+    pub angular_velocity: DVec3,
+}
+
+impl Drive {
+    /// Position and orientation at time `t`: x0 + v t, and q0 turned by ω t.
+    pub fn pose(&self, t: f64) -> (DVec3, DQuat) {
+        let turn = crate::integrate::exp_map(self.angular_velocity * t);
+        (self.x0 + self.velocity * t, (turn * self.q0).normalize())
+    }
 }
 
 impl Body {
+    /// An obstacle: no force moves it (it stands still or is driven).
     pub fn is_static(&self) -> bool {
         self.inv_mass == 0.0
+    }
+
+    /// An obstacle that never moves.
+    pub fn is_fixed(&self) -> bool {
+        self.is_static() && self.drive.is_none()
+    }
+
+    /// A driven obstacle placed where its drive puts it at time `t`.
+    pub fn follow_drive(&mut self, t: f64) {
+        if let Some(d) = &self.drive {
+            (self.x, self.q) = d.pose(t);
+        }
     }
 
     /// Rotation matrix body -> world.
@@ -32,9 +71,13 @@ impl Body {
         DMat3::from_quat(self.q)
     }
 
-    /// Angular velocity in world axes: ω = R I⁻¹ Rᵀ L.
+    /// Angular velocity in world axes: ω = R I⁻¹ Rᵀ L (a driven obstacle's
+    /// prescribed one).
     pub fn omega(&self) -> DVec3 {
-        omega_of(self.q, self.inv_inertia_body, self.l)
+        match &self.drive {
+            Some(d) => d.angular_velocity,
+            None => omega_of(self.q, self.inv_inertia_body, self.l),
+        }
     }
 
     /// Velocity of the body's material point at world position `p`.

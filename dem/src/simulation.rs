@@ -159,6 +159,8 @@ impl Simulation {
         let start = Instant::now();
         // Bodies are independent here; small scenes stay on one thread.
         let ((force, torque), radius) = (self.forces.all(), &self.shape_radius);
+        // Driven obstacles go where their drive puts them at the step's end.
+        let t_next = self.world.time + h;
         // The largest distance any point of a body moved: the max of exact
         // per-body bounds, the same on any thread count.
         let moved = self
@@ -171,6 +173,7 @@ impl Simulation {
                 half_kick(b, force[i], torque[i], h, rot);
                 let before = (b.x, b.q);
                 drift(b, h, rot);
+                b.follow_drive(t_next);
                 travel_bound(before, b, radius[b.shape])
             })
             .reduce(|| 0.0, f64::max);

@@ -58,8 +58,10 @@ impl World {
     pub fn fingerprint(&self) -> u64 {
         let mut h = self.fingerprint_head();
         for b in &self.bodies {
-            let fixed = b.is_static().then_some((b.x, b.q));
-            hash_body(&mut h, b.shape, b.material, b.mass, fixed);
+            let drive = b.drive.as_deref();
+            let at_start = drive.map_or((b.x, b.q), |d| (d.x0, d.q0));
+            let fixed = b.is_static().then_some(at_start);
+            hash_body(&mut h, b.shape, b.material, b.mass, fixed, drive);
         }
         h.0
     }

@@ -185,6 +185,7 @@ mod tests {
             mass: 1.0,
             inv_inertia_body: DMat3::IDENTITY,
             inertia_body: DMat3::IDENTITY,
+            drive: None,
         }
     }
 

@@ -90,6 +90,7 @@ impl BodyRecord {
             mass: self.mass,
             inv_inertia_body: DMat3::from_cols_array(&self.inv_inertia),
             inertia_body: DMat3::from_cols_array(&self.inertia),
+            drive: None,
         };
         self.motion.put(&mut b);
         b
@@ -209,6 +210,7 @@ mod tests {
             mass: 3.0,
             inv_inertia_body: DMat3::from_cols_array(&[1., 2., 3., 4., 5., 6., 7., 8., 9.]),
             inertia_body: DMat3::from_cols_array(&[9., 8., 7., 6., 5., 4., 3., 2., 1.]),
+            drive: None,
         };
         let r = BodyRecord::of(7, &b, DVec3::X, DVec3::NEG_Y);
         let back = r.body();

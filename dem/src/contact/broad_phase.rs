@@ -189,8 +189,13 @@ impl BroadPhase {
         fresh.clear();
         fixed.clear();
         for (k, g) in groups.iter().enumerate() {
-            let (list, pad) = if bodies[g.body as usize].is_static() {
+            let body = &bodies[g.body as usize];
+            // A driven obstacle moves like a particle, but need not be swept
+            // with the particles: it meets only them.
+            let (list, pad) = if body.is_fixed() {
                 (&mut *fixed, 0.0)
+            } else if body.is_static() {
+                (&mut *fixed, pad)
             } else {
                 (&mut *fresh, pad)
             };
@@ -386,6 +391,7 @@ mod tests {
             mass: if moving { 1.0 } else { 0.0 },
             inv_inertia_body: DMat3::ZERO,
             inertia_body: DMat3::ZERO,
+            drive: None,
         }
     }
 

@@ -381,7 +381,7 @@ impl TriangleSet {
         self.moving.extend(
             self.groups
                 .iter()
-                .map(|g| !bodies[g.body as usize].is_static()),
+                .map(|g| !bodies[g.body as usize].is_fixed()),
         );
         // After `advance_lazily`, a moving body's triangles may have been
         // filled at a later pose than the one recorded: its pose no longer
@@ -411,7 +411,7 @@ impl TriangleSet {
                     // Unmoved, and filled unless filling is left to the tasks (a
                     // set followed lazily and then updated at once must not keep
                     // the stale triangles of a body no task needed).
-                    if (poses_tell || body.is_static())
+                    if (poses_tell || body.is_fixed())
                         && *pose == Some(key)
                         && (fill == Fill::OnDemand || *fresh.get_mut() == CURRENT)
                     {
@@ -419,8 +419,8 @@ impl TriangleSet {
                     }
                     let mesh = &world.shapes[body.shape];
                     world_vertices(body, mesh, vertices);
-                    // Static bodies are filled now: once, since they never move.
-                    let fill_now = fill == Fill::Now || body.is_static();
+                    // Fixed obstacles are filled now: once, since they never move.
+                    let fill_now = fill == Fill::Now || body.is_fixed();
                     let mut bbox = Bounds::EMPTY;
                     for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
                         let v = [

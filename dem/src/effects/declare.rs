@@ -202,11 +202,13 @@ use super::gravity::GravityParams;
 use super::rotation::RotationParams;
 
 /// Every effect a scene can declare, in the order of the step pipeline
-/// (friction reads the normal forces the contact effect found).
-pub static KINDS: [Kind; 5] = [
+/// (friction reads the normal forces the contact effect found; moving walls
+/// book the power of both).
+pub static KINDS: &[Kind] = &[
     kind::<GravityParams>(),
     kind::<ContactParams>(),
     kind::<FrictionParams>(),
+    kind::<super::wall_motion::WallMotionParams>(),
     kind::<DampingParams>(),
     kind::<RotationParams>(),
 ];

@@ -13,6 +13,7 @@ mod declare;
 mod friction;
 mod gravity;
 mod rotation;
+mod wall_motion;
 
 pub use contact::{ContactEffect, ContactParams, NormalLaw};
 pub use damping::{DampingEffect, DampingParams};
@@ -20,6 +21,7 @@ pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
 pub use rotation::RotationParams;
+pub use wall_motion::{WallMotionEffect, WallMotionParams};
 
 use crate::contact::{Contact, DetectionStats};
 use crate::ledger::{ExactSum, Ledger};

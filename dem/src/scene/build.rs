@@ -11,9 +11,9 @@ use super::{
     positive, Census, Ctx, Deal, OutputSection, Parallel, Scene, SceneError, MAX_PARTICLES,
     MAX_STEPS,
 };
-use crate::body::Body;
+use crate::body::{Body, Drive};
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
-use crate::effects::{ContactParams, Effects, KINDS};
+use crate::effects::{ContactParams, Declare, Effects, WallMotionParams, KINDS};
 use crate::material::{damping_ratio, Material};
 use crate::mesh::MassProperties;
 use crate::world::World;
@@ -69,8 +69,19 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
     for p in &spec.particles {
         add_particles(ctx, p, dt, &mut bodies)?;
     }
+    let walls_move = effects.has::<WallMotionParams>();
     for o in &spec.obstacles {
-        add_obstacle(ctx, o, &mut bodies)?;
+        add_obstacle(ctx, o, walls_move, &mut bodies)?;
+    }
+    if walls_move && !bodies.world.bodies.iter().any(|b| b.drive.is_some()) {
+        let start = spec.effects.span().start;
+        let key = key_offset(&ctx.text[start..], WallMotionParams::NAME);
+        let at = key.map_or(start, |o| start + o);
+        return ctx.err(
+            at..at,
+            "the wall_motion effect moves obstacles, and no obstacle sets a velocity \
+             or angular_velocity",
+        );
     }
     if bodies.census.particles() == 0 {
         return ctx.err(0..0, "the scene has no particles");
@@ -331,6 +342,7 @@ fn add_particles(
             mass: props.mass,
             inv_inertia_body: inv_inertia,
             inertia_body: props.inertia,
+            drive: None,
         };
         check_motion(
             ctx,
@@ -351,6 +363,7 @@ fn add_particles(
         inv_inertia,
         line: ctx.line_of(span.start),
         fixed: None,
+        drive: None,
     };
     bodies.census.push(run);
     Ok(())
@@ -379,10 +392,12 @@ fn orientation(
     })
 }
 
-/// An obstacle: its mesh in its own frame, where the scene puts it.
+/// An obstacle: its mesh in its own frame, where the scene puts it, and how
+/// it moves (only where `walls_move`: the wall_motion effect is declared).
 fn add_obstacle(
     ctx: &Ctx,
     o: &Spanned<ObstacleSpec>,
+    walls_move: bool,
     bodies: &mut Bodies,
 ) -> Result<(), SceneError> {
     let span = o.span();
@@ -395,18 +410,20 @@ fn add_obstacle(
     });
     world.shapes.push(mesh);
     let x = DVec3::from_array(o.position);
+    let drive = drive(ctx, span.clone(), o, (x, q), walls_move)?;
     let id = bodies.census.bodies() as u32;
     let body = Body {
         shape: world.shapes.len() - 1,
         material: mat,
         x,
         q,
-        v: DVec3::ZERO,
+        v: drive.map_or(DVec3::ZERO, |d| d.velocity),
         l: DVec3::ZERO,
         inv_mass: 0.0,
         mass: f64::INFINITY,
         inv_inertia_body: DMat3::ZERO,
         inertia_body: DMat3::ZERO,
+        drive: drive.map(Box::new),
     };
     bodies.census.push(Run {
         ids: id..id + 1,
@@ -416,9 +433,46 @@ fn add_obstacle(
         inv_inertia: DMat3::ZERO,
         line: ctx.line_of(span.start),
         fixed: Some((x, q)),
+        drive,
     });
     bodies.keep(id, body);
     Ok(())
+}
+
+/// An obstacle's prescribed motion, from its pose at time 0 (`None`: it
+/// stands still). Refused unless finite, and unless the scene declares the
+/// effect that books the walls' work.
+fn drive(
+    ctx: &Ctx,
+    span: Range<usize>,
+    o: &ObstacleSpec,
+    (x0, q0): (DVec3, DQuat),
+    walls_move: bool,
+) -> Result<Option<Drive>, SceneError> {
+    let velocity = DVec3::from_array(o.velocity.unwrap_or_default());
+    let angular_velocity = DVec3::from_array(o.angular_velocity.unwrap_or_default());
+    if !velocity.is_finite() || !angular_velocity.is_finite() {
+        return ctx.err(
+            span,
+            "an obstacle's velocity and angular_velocity must be finite",
+        );
+    }
+    if velocity == DVec3::ZERO && angular_velocity == DVec3::ZERO {
+        return Ok(None);
+    }
+    if !walls_move {
+        return ctx.err(
+            span,
+            "this obstacle moves: declare `wall_motion = {}` in [effects], which books \
+             the work moving walls do",
+        );
+    }
+    Ok(Some(Drive {
+        x0,
+        q0,
+        velocity,
+        angular_velocity,
+    }))
 }
 
 /// `[kernel]`: the detection's method, batch, fallback, schedule and the

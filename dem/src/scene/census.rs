@@ -8,6 +8,7 @@
 //! output's layout, the stable step) reads the census instead, so that no
 //! rank keeps a list of every body.
 
+use crate::body::Drive;
 use crate::world::Fnv1a;
 use glam::{DMat3, DQuat, DVec3};
 use std::ops::Range;
@@ -25,8 +26,10 @@ pub struct Run {
     pub inv_inertia: DMat3,
     /// The line of the scene file that placed them.
     pub line: usize,
-    /// An obstacle's position and orientation (`None`: particles).
+    /// An obstacle's position and orientation at time 0 (`None`: particles).
     pub fixed: Option<(DVec3, DQuat)>,
+    /// A moving obstacle's motion.
+    pub drive: Option<Drive>,
 }
 
 /// The runs of a scene, in id order: the particles' first, then the
@@ -113,20 +116,21 @@ impl Census {
     pub(crate) fn hash_bodies(&self, h: &mut Fnv1a) {
         for r in &self.runs {
             for _ in r.ids.clone() {
-                hash_body(h, r.shape, r.material, r.mass, r.fixed);
+                hash_body(h, r.shape, r.material, r.mass, r.fixed, r.drive.as_ref());
             }
         }
     }
 }
 
 /// What a body contributes to the fingerprint: its shape, material and mass,
-/// and an obstacle's pose.
+/// an obstacle's pose at time 0, and a moving obstacle's velocities.
 pub(crate) fn hash_body(
     h: &mut Fnv1a,
     shape: usize,
     material: usize,
     mass: f64,
     fixed: Option<(DVec3, DQuat)>,
+    drive: Option<&Drive>,
 ) {
     h.u64(shape as u64);
     h.u64(material as u64);
@@ -134,5 +138,9 @@ pub(crate) fn hash_body(
     if let Some((x, q)) = fixed {
         x.to_array().into_iter().for_each(|c| h.f64(c));
         q.to_array().into_iter().for_each(|c| h.f64(c));
+    }
+    if let Some(d) = drive {
+        let v = [d.velocity, d.angular_velocity];
+        v.iter().flat_map(|v| v.to_array()).for_each(|c| h.f64(c));
     }
 }

@@ -179,4 +179,11 @@ pub(super) struct ObstacleSpec {
     /// Rotation vector (axis times angle, radians).
     #[serde(default)]
     pub(super) rotation: Option<[f64; 3]>,
+    /// A prescribed velocity of its frame's origin (m/s) and angular
+    /// velocity about it (rad/s, world axes): the obstacle moves (the
+    /// `wall_motion` effect).
+    #[serde(default)]
+    pub(super) velocity: Option<[f64; 3]>,
+    #[serde(default)]
+    pub(super) angular_velocity: Option<[f64; 3]>,
 }
