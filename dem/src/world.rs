@@ -59,7 +59,7 @@ impl World {
         let mut h = self.fingerprint_head();
         for b in &self.bodies {
             let drive = b.drive.as_deref();
-            let at_start = drive.map_or((b.x, b.q), |d| (d.x0, d.q0));
+            let at_start = drive.map_or((b.x, b.q), |d| d.pose(0.0));
             let fixed = b.is_static().then_some(at_start);
             hash_body(&mut h, b.shape, b.material, b.mass, fixed, drive);
         }

@@ -262,6 +262,9 @@ impl<'c> DistributedSimulation<'c> {
         s.set_loads(&loads);
         s.local.world.time = start_time(&start).0;
         s.local.world.step = start_time(&start).1;
+        // Moving walls stand where their drives put them at the start's time.
+        let t = s.local.world.time;
+        s.obstacles.iter_mut().for_each(|o| o.1.follow_drive(t));
         s.repartition()?;
         if let Start::Fresh = start {
             s.evaluate(true, false)?;
@@ -435,8 +438,9 @@ impl<'c> DistributedSimulation<'c> {
         }
     }
 
-    /// Owners: half kick and drift; returns the farthest any point of an
-    /// owned body moved.
+    /// Owners: half kick and drift; every rank: the moving walls to their
+    /// place at the step's end. Returns the farthest any point of an owned
+    /// body or a moving wall moved.
     fn kick_and_drift(&mut self) -> f64 {
         let (h, rot) = (self.dt, self.rotation);
         let (force, torque) = self.forces.all();
@@ -447,6 +451,15 @@ impl<'c> DistributedSimulation<'c> {
             let before = (b.x, b.q);
             drift(b, h, rot);
             moved = moved.max(travel_bound(before, b, self.shape_radius[b.shape]));
+        }
+        let t_next = self.local.world.time + h;
+        for (id, body, _) in self.obstacles.iter_mut().filter(|o| o.1.drive.is_some()) {
+            let before = (body.x, body.q);
+            body.follow_drive(t_next);
+            moved = moved.max(travel_bound(before, body, self.shape_radius[body.shape]));
+            if let Some(i) = self.local.index_of(*id) {
+                self.local.world.bodies[i].follow_drive(t_next);
+            }
         }
         moved
     }
@@ -657,11 +670,12 @@ impl<'c> DistributedSimulation<'c> {
                     .collect(),
             );
         }
+        // Moving walls are few and go where they please: every rank keeps them.
         let near = |b: &Bounds| !drawn.reach.is_empty() && drawn.reach.overlaps(b);
         streams.push(
             self.obstacles
                 .iter()
-                .filter(|o| near(&o.2))
+                .filter(|o| o.1.drive.is_some() || near(&o.2))
                 .map(|(id, body, _)| Entry {
                     id: *id,
                     body: body.clone(),
@@ -1033,7 +1047,8 @@ impl FrameParts {
 }
 
 /// The particles the scene dealt to this rank (`me`), in the scene's state
-/// or `state`'s, and every obstacle with its box (inflated by its halo).
+/// or `state`'s, and every obstacle with its box (inflated by its halo; a
+/// moving wall's box is that of its start, and not used).
 fn dealt(
     scene: &Scene,
     state: Option<&CheckpointShare>,

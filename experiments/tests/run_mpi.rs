@@ -209,6 +209,20 @@ fn a_thousand_particles_split_to_the_bit() {
     same_as_one_process("silo-1000", &scene("silo-1000.toml"), "500", 1000, &splits);
 }
 
+/// Moving walls (a turning paddle, a sliding floor) on every rank, each
+/// placed by the time alone: split, repartitioned and resumed across rank
+/// counts, the run is one process's to the bit, its books included.
+#[test]
+fn moving_walls_split_and_resume_to_the_bit() {
+    let mixer = scene("mixer.toml");
+    let splits = [
+        (2, vec!["--repartition-every", "10"]),
+        (3, vec!["--partitioner", "rcb", "--repartition-every", "1"]),
+    ];
+    same_as_one_process("mixer", &mixer, "2000", 1000, &splits);
+    resumed_across_rank_counts("resume-mixer", &mixer, &[(2, 700), (3, 600), (1, 700)]);
+}
+
 #[test]
 fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
     let splits = [

@@ -411,6 +411,8 @@ fn add_obstacle(
     world.shapes.push(mesh);
     let x = DVec3::from_array(o.position);
     let drive = drive(ctx, span.clone(), o, (x, q), walls_move)?;
+    // A moving wall is where its drive puts it at every time, 0 included.
+    let (x, q) = drive.map_or((x, q), |d| d.pose(0.0));
     let id = bodies.census.bodies() as u32;
     let body = Body {
         shape: world.shapes.len() - 1,

@@ -35,6 +35,9 @@
 //! material = "glass"
 //! shape = { kind = "box", size = [0.2, 0.2, 0.01] }
 //! position = [0.0, 0.0, -0.005]
+//! # velocity = [0.02, 0.0, 0.0]         # a moving wall (m/s, of `position`), and
+//! # angular_velocity = [0.0, 0.0, 1.0]  # its turn about `position` (rad/s): both
+//! #                                     # need `wall_motion = {}` in [effects]
 //!
 //! [kernel]               # contact detection (docs/dem.md, docs/distance.md)
 //! method = "hybrid"      # brute, penalty or hybrid
