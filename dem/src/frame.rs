@@ -35,6 +35,9 @@ pub struct FrameContact {
     /// The normal and the tangential (friction) force on a.
     pub normal_force: DVec3,
     pub tangential_force: DVec3,
+    /// Whether the friction slides (its force held at μ times the normal
+    /// force); false without friction.
+    pub slides: bool,
 }
 
 impl FrameContact {

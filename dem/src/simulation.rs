@@ -383,6 +383,7 @@ pub fn frame_contacts(world: &World, ctx: &StepContext) -> Vec<FrameContact> {
             depth: c.depth,
             normal_force: force(&ctx.normal_pairs, k),
             tangential_force: force(&ctx.tangential_pairs, k),
+            slides: ctx.sliding.get(k).copied().unwrap_or(false),
         })
         .collect()
 }

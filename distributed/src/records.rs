@@ -160,6 +160,8 @@ pub struct ContactRecord {
     pub depth: f64,
     pub normal_force: [f64; 3],
     pub tangential_force: [f64; 3],
+    /// 1: the contact's friction slides.
+    pub slides: u64,
 }
 
 impl ContactRecord {
@@ -173,6 +175,7 @@ impl ContactRecord {
             depth: c.depth,
             normal_force: c.normal_force.to_array(),
             tangential_force: c.tangential_force.to_array(),
+            slides: u64::from(c.slides),
         }
     }
 
@@ -189,6 +192,7 @@ impl ContactRecord {
             depth: self.depth,
             normal_force: DVec3::from_array(self.normal_force),
             tangential_force: DVec3::from_array(self.tangential_force),
+            slides: self.slides == 1,
         }
     }
 }

@@ -19,7 +19,7 @@
 //!   up to the integrator's error.
 //! - `/steps/<k>/contact_forces/`: per contact (C) its `points`, `forces` (on the first
 //!   body; the second takes the opposite), `normal_forces`, `tangential_forces` (C×3),
-//!   `normal_force_magnitudes`, `overlaps` (C), `bodies` (C×2); and the contact
+//!   `normal_force_magnitudes`, `overlaps`, `slides` (C), `bodies` (C×2); and the contact
 //!   network's `line_points` (2C×3) and `lines` (C×2).
 //! - `/steps/<k>/surface/points` (V×3): every body's mesh vertices where the body stands.
 //!
@@ -750,6 +750,7 @@ fn xdmf_contact_lines(x: &mut String, s: &StepIndex) {
         &c("normal_force_magnitudes"),
     );
     attribute(x, "overlap", "Cell", &[nc], "Float", 8, &c("overlaps"));
+    attribute(x, "slides", "Cell", &[nc], "UChar", 1, &c("slides"));
     for (name, what) in [
         ("normal_force_vector", "normal_forces"),
         ("tangential_force", "tangential_forces"),
@@ -870,6 +871,11 @@ fn write_contacts(g: &hdf5::Group, frame: &Frame, obstacle: &[bool]) -> CliResul
         .new_dataset_builder()
         .with_data(&Array1::from_iter(c.iter().map(|x| x.depth)))
         .create("overlaps")
+        .map_err(h5err)?;
+    group
+        .new_dataset_builder()
+        .with_data(&Array1::from_iter(c.iter().map(|x| u8::from(x.slides))))
+        .create("slides")
         .map_err(h5err)?;
     group
         .new_dataset_builder()

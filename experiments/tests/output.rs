@@ -165,6 +165,7 @@ fn contact_lines_join_the_bodies_in_contact() {
     let (normal, tangential) = (read2(&c, "normal_forces"), read2(&c, "tangential_forces"));
     let magnitude: Array1<f64> = read1(&c, "normal_force_magnitudes");
     let overlap: Array1<f64> = read1(&c, "overlaps");
+    let slides: Array1<u8> = c.dataset("slides").unwrap().read_1d().unwrap();
     assert!(pairs.nrows() > 0, "no contacts at the last step");
     for r in 0..pairs.nrows() {
         for (side, &id) in pairs.row(r).iter().enumerate() {
@@ -180,7 +181,20 @@ fn contact_lines_join_the_bodies_in_contact() {
         assert!(close(magnitude[r], n.length(), n.length()));
         assert_eq!(vec3(&force, r), n + vec3(&tangential, r));
         assert!(overlap[r] > 0.0);
+        // The hopper's materials all have μ = 0.3: a sliding contact's
+        // friction is held at μ |F_n|, a sticking one's is below it (the
+        // normal force's part from a crossing's weight aside, 1e-3).
+        let (t, cap) = (vec3(&tangential, r).length(), 0.3 * n.length());
+        match slides[r] {
+            1 => assert!(
+                (t - cap).abs() <= 1e-3 * cap,
+                "contact {r} slides: {t} of {cap}"
+            ),
+            _ => assert!(t <= cap * (1.0 + 1e-3), "contact {r} sticks: {t} of {cap}"),
+        }
     }
+    assert!(slides.iter().any(|&s| s == 1), "none slides");
+    assert!(slides.iter().any(|&s| s == 0), "none sticks");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -72,9 +72,9 @@ pub struct FrictionEffect {
     /// This step's body pairs in contact, and their entries in `history`.
     pairs: Vec<Range<usize>>,
     carried: Vec<Range<usize>>,
-    /// Per contact: the force pair, the displacement carried on, and the
-    /// tangential force's power.
-    results: Vec<(PairForce, DVec3, f64)>,
+    /// Per contact: the force pair, the displacement carried on, the
+    /// tangential force's power, and whether it slides.
+    results: Vec<(PairForce, DVec3, f64, bool)>,
     /// The tangential springs' energy now, and the work the tangential
     /// forces have taken out of the bodies since the start.
     ledger: Ledger,
@@ -186,9 +186,13 @@ impl FrictionEffect {
             });
         self.next.clear();
         ctx.tangential_pairs.clear();
+        ctx.sliding.clear();
         self.ledger.begin();
-        for (k, (c, (force, xi, power))) in ctx.contacts.iter().zip(&self.results).enumerate() {
+        for (k, (c, (force, xi, power, slides))) in
+            ctx.contacts.iter().zip(&self.results).enumerate()
+        {
             ctx.tangential_pairs.push(*force);
+            ctx.sliding.push(*slides);
             ctx.contact_force[k] += force.force;
             self.next.push(((id(c.a), id(c.b), c.key), *xi));
             let law = self
@@ -318,7 +322,7 @@ fn pair_friction(
     normal_force: &[f64],
     old: &[(Key, DVec3)],
     dt: f64,
-    out: &mut [(PairForce, DVec3, f64)],
+    out: &mut [(PairForce, DVec3, f64, bool)],
 ) {
     let (a, b) = (contacts[0].a, contacts[0].b);
     let (ba, bb) = (&world.bodies[a], &world.bodies[b]);
@@ -346,6 +350,8 @@ fn pair_friction(
             xi = -(f_t + v_t * c_t) / k_t;
         }
         let pair = PairForce::new(a, ba.x, b, bb.x, c.point, f_t);
-        *slot = (pair, xi, f_t.dot(v_t));
+        // Sliding where friction acts at all: a spring in tension holds none.
+        let slides = mag > cap && cap > 0.0;
+        *slot = (pair, xi, f_t.dot(v_t), slides);
     }
 }

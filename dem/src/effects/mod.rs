@@ -222,6 +222,9 @@ pub struct StepContext {
     /// as force pairs on its two bodies.
     pub normal_pairs: Vec<PairForce>,
     pub tangential_pairs: Vec<PairForce>,
+    /// Per contact: whether its friction slides (held at μ times its normal
+    /// force); empty without friction.
+    pub sliding: Vec<bool>,
     /// Whether the caller found this evaluation's contacts (split across
     /// ranks, where detection needs other ranks' bodies): the contact effect
     /// then applies its law to `contacts` as they are.
