@@ -68,6 +68,8 @@ pub struct Energies {
     /// Per effect, in pipeline order: what it stores now (gravity's
     /// potential, the springs) and what it has dissipated since the start.
     pub effects: Vec<EffectEnergy>,
+    /// What the effects measure (the probes), named, in pipeline order.
+    pub measures: Vec<(String, f64)>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -93,6 +95,7 @@ pub struct EnergyBooks {
     pub translation: ExactSum,
     pub rotation: ExactSum,
     pub effects: Vec<(&'static str, Books)>,
+    pub measures: Vec<(String, ExactSum)>,
 }
 
 impl EnergyBooks {
@@ -101,6 +104,9 @@ impl EnergyBooks {
         self.translation.merge(&o.translation);
         self.rotation.merge(&o.rotation);
         for ((_, mine), (_, theirs)) in self.effects.iter_mut().zip(&o.effects) {
+            mine.merge(theirs);
+        }
+        for ((_, mine), (_, theirs)) in self.measures.iter_mut().zip(&o.measures) {
             mine.merge(theirs);
         }
     }
@@ -120,6 +126,7 @@ impl EnergyBooks {
             put(&b.stored);
             put(&b.dissipated);
         }
+        self.measures.iter().for_each(|(_, s)| put(s));
         out
     }
 
@@ -144,10 +151,16 @@ impl EnergyBooks {
                 (*name, Books { stored, dissipated })
             })
             .collect();
+        let measures = self
+            .measures
+            .iter()
+            .map(|(name, _)| (name.clone(), take()))
+            .collect();
         EnergyBooks {
             translation,
             rotation,
             effects,
+            measures,
         }
     }
 
@@ -164,6 +177,11 @@ impl EnergyBooks {
                     stored: b.stored.value(),
                     dissipated: b.dissipated.value(),
                 })
+                .collect(),
+            measures: self
+                .measures
+                .iter()
+                .map(|(name, s)| (name.clone(), s.value()))
                 .collect(),
         }
     }

@@ -364,6 +364,10 @@ pub fn energy_books(world: &World, ctx: &StepContext, effects: &[Box<dyn Effect>
         .iter()
         .map(|e| (e.name(), e.books(world, ctx)))
         .collect();
+    books.measures = effects
+        .iter()
+        .flat_map(|e| e.measures(world, ctx))
+        .collect();
     books
 }
 

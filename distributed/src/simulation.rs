@@ -964,6 +964,11 @@ impl<'c> DistributedSimulation<'c> {
                 .iter()
                 .map(|(n, _)| (*n, Default::default()))
                 .collect(),
+            measures: books
+                .measures
+                .iter()
+                .map(|(n, _)| (n.clone(), Default::default()))
+                .collect(),
             ..EnergyBooks::default()
         };
         let mut at = 0;

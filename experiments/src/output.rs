@@ -17,6 +17,7 @@
 //!   effect `<effect>_stored` (gravity's potential, springs) and `<effect>_dissipated`
 //!   (work of dashpots, sliding and damping since the start), in J: their sum is constant
 //!   up to the integrator's error.
+//! - `/steps/<k>/probes`: attributes, what the `probes` effect measured (if declared).
 //! - `/steps/<k>/contact_forces/`: per contact (C) its `points`, `forces` (on the first
 //!   body; the second takes the opposite), `normal_forces`, `tangential_forces` (C×3),
 //!   `normal_force_magnitudes`, `overlaps`, `slides` (C), `bodies` (C×2); and the contact
@@ -809,7 +810,7 @@ fn attribute(
 /// Points per block of the surface written at once (as coordinates).
 const SURFACE_BLOCK: usize = 3 << 16;
 
-/// The energy attributes of one output step.
+/// The energy attributes of one output step, and the probes' (if any).
 fn write_energies(g: &hdf5::Group, frame: &Frame) -> CliResult {
     let e = &frame.energies;
     let group = g.create_group("energy").map_err(h5err)?;
@@ -821,6 +822,16 @@ fn write_energies(g: &hdf5::Group, frame: &Frame) -> CliResult {
         values.push((format!("{}_stored", x.effect), x.stored));
         values.push((format!("{}_dissipated", x.effect), x.dissipated));
     }
+    scalars(&group, values)?;
+    if !e.measures.is_empty() {
+        let group = g.create_group("probes").map_err(h5err)?;
+        scalars(&group, e.measures.iter().cloned())?;
+    }
+    Ok(())
+}
+
+/// Writes each (name, value) as an f64 attribute of `group`.
+fn scalars(group: &hdf5::Group, values: impl IntoIterator<Item = (String, f64)>) -> CliResult {
     for (name, v) in values {
         group
             .new_attr::<f64>()

@@ -211,7 +211,8 @@ fn a_thousand_particles_split_to_the_bit() {
 
 /// Moving walls (a turning paddle, a sliding floor) on every rank, each
 /// placed by the time alone: split, repartitioned and resumed across rank
-/// counts, the run is one process's to the bit, its books included.
+/// counts, the run is one process's to the bit, its books and probes
+/// included.
 #[test]
 fn moving_walls_split_and_resume_to_the_bit() {
     let mixer = scene("mixer.toml");

@@ -211,4 +211,5 @@ pub static KINDS: &[Kind] = &[
     kind::<super::wall_motion::WallMotionParams>(),
     kind::<DampingParams>(),
     kind::<RotationParams>(),
+    kind::<super::probes::ProbesParams>(),
 ];

@@ -12,6 +12,7 @@ mod damping;
 mod declare;
 mod friction;
 mod gravity;
+mod probes;
 mod rotation;
 mod wall_motion;
 
@@ -20,6 +21,7 @@ pub use damping::{DampingEffect, DampingParams};
 pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, KINDS};
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
+pub use probes::{Plane, ProbesEffect, ProbesParams, Region};
 pub use rotation::RotationParams;
 pub use wall_motion::{WallMotionEffect, WallMotionParams};
 
@@ -304,6 +306,12 @@ pub trait Effect: Send {
     /// for an effect that stores and dissipates nothing).
     fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
         Books::default()
+    }
+    /// What the effect measures of `ctx.bodies` at an output step (a
+    /// probe's counts and masses), named, as exact sums that merge across
+    /// ranks: empty for an effect that measures nothing.
+    fn measures(&self, _world: &World, _ctx: &StepContext) -> Vec<(String, ExactSum)> {
+        Vec::new()
     }
     /// The books the effect keeps from step to step, if any: a checkpoint
     /// holds them, and split across ranks each rank keeps its terms' share.

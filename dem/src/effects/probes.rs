@@ -1,0 +1,151 @@
+//! Probes: what is in a region, and what has passed a plane, measured at
+//! every output step and written to `run.h5` as time series
+//! (`/steps/<k>/probes`, docs/output.md).
+//!
+//! - A region (an axis-aligned box, lo ≤ x ≤ hi for the particle's centre
+//!   of mass): the particles in it, their mass and momentum; their mean
+//!   velocity is momentum / mass.
+//! - A plane (a point p and a normal n): the particles whose centre lies
+//!   past it, (x − p)·n > 0, and their mass. The mass flow through the
+//!   plane is the rate of change of that mass: exact for grains that cross
+//!   once (a silo's outlet, a floor's edge), and the difference of two
+//!   output steps divided by their time apart is the mean rate between them.
+//!
+//! Each quantity is an exact sum over the particles ([`ExactSum`]), so a
+//! run split across ranks measures the same bits as one process. A probe
+//! adds no force: it reads the state, at output steps only.
+
+use super::{Declare, Effect, Forces, StepContext};
+use crate::ledger::ExactSum;
+use crate::scene::Scene;
+use crate::world::World;
+use glam::DVec3;
+use serde::Deserialize;
+
+/// `probes = { regions = [{ name, lo, hi }], planes = [{ name, point, normal }] }`.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbesParams {
+    #[serde(default)]
+    pub regions: Vec<Region>,
+    #[serde(default)]
+    pub planes: Vec<Plane>,
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    pub name: String,
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Plane {
+    pub name: String,
+    pub point: [f64; 3],
+    pub normal: [f64; 3],
+}
+
+impl Declare for ProbesParams {
+    const NAME: &'static str = "probes";
+    fn check(&self) -> Result<(), String> {
+        let names: Vec<&str> = self
+            .regions
+            .iter()
+            .map(|r| r.name.as_str())
+            .chain(self.planes.iter().map(|p| p.name.as_str()))
+            .collect();
+        if names.is_empty() {
+            return Err("declare at least one region or plane".into());
+        }
+        for (k, name) in names.iter().enumerate() {
+            let word = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
+            if name.is_empty() || !name.chars().all(word) {
+                return Err(format!(
+                    "probe name `{name}`: use letters, digits, `_` and `-`"
+                ));
+            }
+            if names[..k].contains(name) {
+                return Err(format!("two probes are named `{name}`"));
+            }
+        }
+        for r in &self.regions {
+            let (lo, hi) = (DVec3::from_array(r.lo), DVec3::from_array(r.hi));
+            if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
+                return Err(format!(
+                    "region `{}`: lo and hi must be finite, lo ≤ hi on every axis",
+                    r.name
+                ));
+            }
+        }
+        for p in &self.planes {
+            let (x, n) = (DVec3::from_array(p.point), DVec3::from_array(p.normal));
+            if !x.is_finite() || !n.is_finite() || n == DVec3::ZERO {
+                return Err(format!(
+                    "plane `{}`: point and normal must be finite, the normal not zero",
+                    p.name
+                ));
+            }
+        }
+        Ok(())
+    }
+    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+        Some(Box::new(ProbesEffect {
+            params: self.clone(),
+        }))
+    }
+}
+
+pub struct ProbesEffect {
+    params: ProbesParams,
+}
+
+impl Effect for ProbesEffect {
+    fn name(&self) -> &'static str {
+        ProbesParams::NAME
+    }
+
+    fn apply(&mut self, _world: &World, _ctx: &mut StepContext, _forces: &mut Forces) {}
+
+    /// Per region: `<name>_count`, `_mass`, `_momentum_{x,y,z}`; per plane:
+    /// `<name>_count_past`, `_mass_past`; over the particles `ctx.bodies`.
+    fn measures(&self, world: &World, ctx: &StepContext) -> Vec<(String, ExactSum)> {
+        let mut out = Vec::new();
+        for r in &self.params.regions {
+            let (lo, hi) = (DVec3::from_array(r.lo), DVec3::from_array(r.hi));
+            let mut sums: [ExactSum; 5] = Default::default();
+            for &i in &ctx.bodies {
+                let b = &world.bodies[i];
+                if b.x.cmpge(lo).all() && b.x.cmple(hi).all() {
+                    let p = b.v * b.mass;
+                    for (s, x) in sums.iter_mut().zip([1.0, b.mass, p.x, p.y, p.z]) {
+                        s.add(x);
+                    }
+                }
+            }
+            let names = ["count", "mass", "momentum_x", "momentum_y", "momentum_z"];
+            out.extend(
+                names
+                    .iter()
+                    .zip(sums)
+                    .map(|(n, s)| (format!("{}_{n}", r.name), s)),
+            );
+        }
+        for p in &self.params.planes {
+            let (x, n) = (DVec3::from_array(p.point), DVec3::from_array(p.normal));
+            let (mut count, mut mass) = (ExactSum::default(), ExactSum::default());
+            for &i in &ctx.bodies {
+                let b = &world.bodies[i];
+                if (b.x - x).dot(n) > 0.0 {
+                    count.add(1.0);
+                    mass.add(b.mass);
+                }
+            }
+            out.push((format!("{}_count_past", p.name), count));
+            out.push((format!("{}_mass_past", p.name), mass));
+        }
+        out
+    }
+}
