@@ -278,3 +278,35 @@ fn a_neighbour_list_sees_a_moving_wall() {
         );
     }
 }
+
+/// A wall that would leave finite numbers within the run is refused; one
+/// that would jump past half a particle in a step is warned of, naming the
+/// line; an ordinary one is neither.
+#[test]
+fn walls_too_fast_for_the_run_are_refused_or_warned_of() {
+    let text = block_on_floor(DVec3::ZERO, "velocity = [1e308, 0.0, 0.0]", WALLS)
+        .replace("end_time = 1.0", "end_time = 10.0");
+    let e = parse(&text).unwrap_err();
+    assert!(e.contains("beyond finite numbers"), "{e}");
+    assert!(e.contains("walls.toml:"), "{e}");
+    let fast = parse(&block_on_floor(
+        DVec3::ZERO,
+        "angular_velocity = [0.0, 0.0, 1e4]",
+        WALLS,
+    ))
+    .unwrap();
+    assert!(
+        fast.warnings
+            .iter()
+            .any(|w| w.contains("moving obstacle's surface moves") && w.contains("walls.toml:")),
+        "{:?}",
+        fast.warnings
+    );
+    let slow = parse(&block_on_floor(
+        DVec3::ZERO,
+        "velocity = [1.0, 0.0, 0.0]",
+        WALLS,
+    ))
+    .unwrap();
+    assert!(slow.warnings.is_empty(), "{:?}", slow.warnings);
+}

@@ -15,7 +15,7 @@ use crate::body::{Body, Drive};
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
 use crate::effects::{ContactParams, Declare, Effects, WallMotionParams, KINDS};
 use crate::material::{damping_ratio, Material};
-use crate::mesh::MassProperties;
+use crate::mesh::{MassProperties, TriMesh};
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use rand::SeedableRng;
@@ -71,7 +71,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
     }
     let walls_move = effects.has::<WallMotionParams>();
     for o in &spec.obstacles {
-        add_obstacle(ctx, o, walls_move, &mut bodies)?;
+        add_obstacle(ctx, o, walls_move, (dt, end_time), &mut bodies)?;
     }
     if walls_move && !bodies.world.bodies.iter().any(|b| b.drive.is_some()) {
         let start = spec.effects.span().start;
@@ -398,6 +398,7 @@ fn add_obstacle(
     ctx: &Ctx,
     o: &Spanned<ObstacleSpec>,
     walls_move: bool,
+    (dt, end_time): (f64, f64),
     bodies: &mut Bodies,
 ) -> Result<(), SceneError> {
     let span = o.span();
@@ -411,6 +412,22 @@ fn add_obstacle(
     world.shapes.push(mesh);
     let x = DVec3::from_array(o.position);
     let drive = drive(ctx, span.clone(), o, (x, q), walls_move)?;
+    if let Some(d) = &drive {
+        let thinnest = bodies
+            .census
+            .runs()
+            .iter()
+            .filter(|r| r.fixed.is_none())
+            .map(|r| smallest_extent(&world.shapes[r.shape]))
+            .fold(f64::INFINITY, f64::min);
+        let mesh = world
+            .shapes
+            .last()
+            .expect("the obstacle's shape, just added");
+        let thinnest = thinnest.min(smallest_extent(mesh));
+        let warning = check_drive(ctx, span.clone(), d, mesh, (dt, end_time), thinnest)?;
+        bodies.warnings.extend(warning);
+    }
     // A moving wall is where its drive puts it at every time, 0 included.
     let (x, q) = drive.map_or((x, q), |d| d.pose(0.0));
     let id = bodies.census.bodies() as u32;
@@ -474,6 +491,43 @@ fn drive(
         q0,
         velocity,
         angular_velocity,
+    }))
+}
+
+/// A moving wall must stay where numbers are finite over the whole run (a
+/// velocity of 1e300 m/s is finite, its position after a second is not):
+/// refused otherwise. One whose surface moves more than half the thickness
+/// of itself or of the thinnest particle (`thinnest`) in one step can pass
+/// through particles between two detections: warned.
+fn check_drive(
+    ctx: &Ctx,
+    span: Range<usize>,
+    d: &Drive,
+    mesh: &TriMesh,
+    (dt, end_time): (f64, f64),
+    thinnest: f64,
+) -> Result<Option<String>, SceneError> {
+    let (end, _) = d.pose(end_time);
+    if !end.is_finite() {
+        return ctx.err(
+            span,
+            format!(
+                "this obstacle's velocity takes it beyond finite numbers by end_time = \
+                 {end_time:e} s"
+            ),
+        );
+    }
+    let reach = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
+    let speed = d.velocity.length() + d.angular_velocity.length() * reach;
+    let travel = speed * dt;
+    Ok((travel > thinnest / 2.0).then(|| {
+        format!(
+            "{}:{}: a moving obstacle's surface moves up to {travel:e} m in one step, more \
+             than half the thickness of the thinnest body ({thinnest:e} m): it can pass \
+             through particles between two detections; lower dt or the speed",
+            ctx.file,
+            ctx.line_of(span.start)
+        )
     }))
 }
 
