@@ -58,10 +58,7 @@ impl Effect for DampingEffect {
     }
 
     fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
-        Books {
-            stored: Default::default(),
-            dissipated: self.ledger.taken().clone(),
-        }
+        Books::taken_by(&self.ledger)
     }
 
     fn ledger(&self) -> Option<&Ledger> {

@@ -267,6 +267,14 @@ pub struct Books {
 }
 
 impl Books {
+    /// The books of an effect that stores nothing: what `ledger` took out.
+    pub fn taken_by(ledger: &Ledger) -> Books {
+        Books {
+            stored: Default::default(),
+            dissipated: ledger.taken().clone(),
+        }
+    }
+
     pub fn merge(&mut self, o: &Books) {
         self.stored.merge(&o.stored);
         self.dissipated.merge(&o.dissipated);

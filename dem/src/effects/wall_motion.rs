@@ -72,10 +72,7 @@ impl Effect for WallMotionEffect {
     }
 
     fn books(&self, _world: &World, _ctx: &StepContext) -> Books {
-        Books {
-            stored: Default::default(),
-            dissipated: self.ledger.taken().clone(),
-        }
+        Books::taken_by(&self.ledger)
     }
 
     fn ledger(&self) -> Option<&Ledger> {
