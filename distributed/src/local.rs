@@ -64,9 +64,27 @@ impl Local {
 
     /// Makes the bodies of `streams`, each in increasing id, this rank's, in
     /// id order; returns each body's force and torque, by its new index.
-    /// Each body is moved once (a merge, not a sort of bodies hundreds of
-    /// bytes long). Refused if a stream is out of order or an id comes twice.
+    /// Refused if a stream is out of order or an id comes twice.
     pub fn merge(&mut self, streams: Vec<Vec<Entry>>) -> Result<Vec<(DVec3, DVec3)>, String> {
+        self.admit(|_| false, (&[], &[]), streams)
+    }
+
+    /// Keeps the bodies `keep` names (by index), in place, and merges in
+    /// the bodies of `streams`, each in increasing id: the rank's bodies are
+    /// then the kept and the new, in id order. Returns each body's force and
+    /// torque by its new index: a kept body's from `kept_loads` (by its old
+    /// index; zero where it is short), a new body's from its entry.
+    ///
+    /// The kept bodies are not taken out and put back: the merge runs from
+    /// the back of the world's own array, so that a rank never holds its
+    /// bodies twice, which at a redraw or a migration would be its peak of
+    /// memory. Refused if a stream is out of order or an id comes twice.
+    pub fn admit(
+        &mut self,
+        keep: impl Fn(usize) -> bool,
+        kept_loads: (&[DVec3], &[DVec3]),
+        mut streams: Vec<Vec<Entry>>,
+    ) -> Result<Vec<(DVec3, DVec3)>, String> {
         for s in &streams {
             if let Some(w) = s.windows(2).find(|w| w[0].id >= w[1].id) {
                 return Err(format!(
@@ -75,72 +93,98 @@ impl Local {
                 ));
             }
         }
-        let total: usize = streams.iter().map(Vec::len).sum();
+        let kept = self.keep_in_place(keep, kept_loads);
+        let arriving: usize = streams.iter().map(Vec::len).sum();
+        let n = kept.ids.len();
+        let total = n + arriving;
         let w = &mut self.world;
-        w.bodies.clear();
-        w.ids.clear();
-        self.roles.clear();
-        self.owner.clear();
-        self.halos.clear();
-        self.owned.clear();
-        self.work.clear();
-        w.bodies.reserve_exact(total);
-        let mut loads = Vec::with_capacity(total);
-        let mut heads: Vec<_> = streams
-            .into_iter()
-            .map(|s| s.into_iter().peekable())
-            .collect();
-        loop {
-            let next = heads
-                .iter_mut()
-                .enumerate()
-                .filter_map(|(k, h)| h.peek().map(|e| (e.id, k)))
-                .min();
-            let Some((id, k)) = next else { break };
-            let e = heads[k].next().expect("peeked");
-            if w.ids.last() == Some(&id) {
-                let role = self.roles.last().expect("a body before");
-                return Err(format!(
-                    "body {id} came to this rank twice (as {role:?} and {:?})",
-                    e.role
-                ));
-            }
-            let i = w.bodies.len();
-            let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
-            w.ids.push(e.id);
-            w.bodies.push(e.body);
-            self.roles.push(e.role);
-            self.owner.push(e.owner);
-            self.halos.push(halo);
-            self.work.push(e.work);
-            if e.role == Role::Own {
-                self.owned.push(i);
-            }
-            loads.push((e.force, e.torque));
+        if let Some(e) = streams.iter().flatten().next() {
+            let filler = e.body.clone();
+            w.bodies.reserve_exact(arriving);
+            w.bodies.resize(total, filler);
         }
-        Ok(loads)
+        // From the back: the largest id not yet placed goes to slot k.
+        let mut placed = Placed::with_capacity(total);
+        let mut i = n;
+        for k in (0..total).rev() {
+            let from_stream = streams
+                .iter()
+                .enumerate()
+                .filter_map(|(s, v)| v.last().map(|e| (e.id, s)))
+                .max();
+            let kept_id = i.checked_sub(1).map(|j| kept.ids[j]);
+            let id = match (from_stream, kept_id) {
+                (Some((a, s)), b) if b.is_none_or(|b| a > b) => {
+                    let e = streams[s].pop().expect("a last entry");
+                    let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
+                    w.bodies[k] = e.body;
+                    placed.push(e.id, e.role, e.owner, halo, e.work, (e.force, e.torque));
+                    e.id
+                }
+                (_, b) => {
+                    let b = b.expect("total counts every body");
+                    i -= 1;
+                    w.bodies.swap(k, i);
+                    placed.push(
+                        b,
+                        kept.roles[i],
+                        kept.owner[i],
+                        kept.halos[i],
+                        kept.work[i],
+                        kept.loads[i],
+                    );
+                    b
+                }
+            };
+            if let Some(&after) = placed.ids.iter().rev().nth(1) {
+                if after == id {
+                    return Err(format!("body {id} came to this rank twice"));
+                }
+            }
+        }
+        Ok(self.install(placed))
     }
 
-    /// Takes this rank's own bodies out, as entries in id order with their
-    /// forces from `loads` (by index); the rest are dropped.
-    pub fn take_owned(&mut self, loads: (&[DVec3], &[DVec3])) -> Vec<Entry> {
-        let bodies = std::mem::take(&mut self.world.bodies);
-        let mut out = Vec::with_capacity(self.owned.len());
-        for (i, body) in bodies.into_iter().enumerate() {
-            if self.roles[i] != Role::Own {
-                continue;
-            }
-            out.push(Entry {
-                id: self.world.ids[i],
-                body,
-                role: Role::Own,
-                owner: self.owner[i],
-                force: loads.0.get(i).copied().unwrap_or_default(),
-                torque: loads.1.get(i).copied().unwrap_or_default(),
-                work: self.work[i],
-            });
+    /// Compacts the world to the bodies `keep` names, in place, and returns
+    /// what they carry besides the bodies themselves.
+    fn keep_in_place(
+        &mut self,
+        keep: impl Fn(usize) -> bool,
+        loads: (&[DVec3], &[DVec3]),
+    ) -> Placed {
+        let w = &mut self.world;
+        let n = w.bodies.len();
+        let flags: Vec<bool> = (0..n).map(&keep).collect();
+        let mut at = 0;
+        w.bodies.retain(|_| {
+            at += 1;
+            flags[at - 1]
+        });
+        let mut kept = Placed::with_capacity(w.bodies.len());
+        for i in (0..n).filter(|&i| flags[i]) {
+            let load = (
+                loads.0.get(i).copied().unwrap_or_default(),
+                loads.1.get(i).copied().unwrap_or_default(),
+            );
+            let (id, role, owner) = (w.id(i), self.roles[i], self.owner[i]);
+            kept.push(id, role, owner, self.halos[i], self.work[i], load);
         }
-        out
+        kept
+    }
+
+    /// Takes `placed` (gathered from the last body to the first) as the
+    /// bodies' ids, roles, owners, halos and work; returns their loads.
+    fn install(&mut self, mut p: Placed) -> Vec<(DVec3, DVec3)> {
+        p.reverse();
+        self.world.ids = p.ids;
+        self.roles = p.roles;
+        self.owner = p.owner;
+        self.halos = p.halos;
+        self.work = p.work;
+        self.owned = (0..self.roles.len())
+            .filter(|&i| self.roles[i] == Role::Own)
+            .collect();
+        p.loads
     }
 
     /// The index of the body of id `id`, if this rank holds it.
@@ -164,6 +208,56 @@ impl Local {
             .iter()
             .map(|b| w.shapes[b.shape].triangles.len() as u64)
             .sum()
+    }
+}
+
+/// What a rank keeps of each body besides the body itself, in a merge.
+#[derive(Default)]
+struct Placed {
+    ids: Vec<u32>,
+    roles: Vec<Role>,
+    owner: Vec<i32>,
+    halos: Vec<f64>,
+    work: Vec<[f64; 2]>,
+    loads: Vec<(DVec3, DVec3)>,
+}
+
+impl Placed {
+    fn with_capacity(n: usize) -> Placed {
+        Placed {
+            ids: Vec::with_capacity(n),
+            roles: Vec::with_capacity(n),
+            owner: Vec::with_capacity(n),
+            halos: Vec::with_capacity(n),
+            work: Vec::with_capacity(n),
+            loads: Vec::with_capacity(n),
+        }
+    }
+
+    fn push(
+        &mut self,
+        id: u32,
+        role: Role,
+        owner: i32,
+        halo: f64,
+        work: [f64; 2],
+        load: (DVec3, DVec3),
+    ) {
+        self.ids.push(id);
+        self.roles.push(role);
+        self.owner.push(owner);
+        self.halos.push(halo);
+        self.work.push(work);
+        self.loads.push(load);
+    }
+
+    fn reverse(&mut self) {
+        self.ids.reverse();
+        self.roles.reverse();
+        self.owner.reverse();
+        self.halos.reverse();
+        self.work.reverse();
+        self.loads.reverse();
     }
 }
 
@@ -240,10 +334,40 @@ mod tests {
         assert_eq!(l.halos, vec![0.5; 4]);
         assert_eq!((l.index_of(9), l.index_of(3)), (Some(2), None));
         let (f, t): (Vec<DVec3>, Vec<DVec3>) = loads.into_iter().unzip();
-        let back = l.take_owned((&f, &t));
-        let ids: Vec<u32> = back.iter().map(|e| e.id).collect();
-        assert_eq!(ids, vec![2, 5]);
-        assert_eq!(back[1].force, DVec3::splat(5.0));
+        // The owned stay, with their loads; new ghosts and obstacles come.
+        let own = |i: usize| l.roles[i] == Role::Own;
+        let own: Vec<bool> = (0..4).map(own).collect();
+        let loads = l
+            .admit(
+                |i| own[i],
+                (&f, &t),
+                vec![
+                    vec![entry(1, Role::Ghost), entry(7, Role::Ghost)],
+                    vec![entry(3, Role::Obstacle), entry(40, Role::Obstacle)],
+                ],
+            )
+            .unwrap();
+        assert_eq!(l.world.ids, vec![1, 2, 3, 5, 7, 40]);
+        let xs: Vec<f64> = l.world.bodies.iter().map(|b| b.x.x).collect();
+        assert_eq!(xs, vec![1.0, 2.0, 3.0, 5.0, 7.0, 40.0]);
+        assert_eq!(l.owned, vec![1, 3]);
+        assert_eq!(l.roles[2], Role::Obstacle);
+        assert_eq!(l.owner, vec![1, 0, 1, 0, 1, 1]);
+        assert_eq!(loads[1].0, DVec3::splat(2.0));
+        assert_eq!(loads[3].0, DVec3::splat(5.0));
+        assert_eq!(loads[4].0, DVec3::splat(7.0));
+    }
+
+    /// Kept in place, a kept body whose id arrives again is refused.
+    #[test]
+    fn a_kept_body_arriving_again_is_refused() {
+        let mut l = local();
+        l.merge(vec![vec![entry(2, Role::Own), entry(5, Role::Own)]])
+            .unwrap();
+        let why = l
+            .admit(|_| true, (&[], &[]), vec![vec![entry(5, Role::Ghost)]])
+            .unwrap_err();
+        assert!(why.contains("body 5") && why.contains("twice"), "{why}");
     }
 
     #[test]

@@ -280,10 +280,11 @@ impl<'c> DistributedSimulation<'c> {
         self.comm.abort(70)
     }
 
-    /// Makes the bodies of `streams` (each in increasing id) this rank's,
-    /// their forces as they carry.
-    fn take_in(&mut self, streams: Vec<Vec<Entry>>) {
-        match self.local.merge(streams) {
+    /// Keeps the own bodies in place and merges in `streams` (each in
+    /// increasing id), all with zero forces.
+    fn keep_owned(&mut self, streams: Vec<Vec<Entry>>) {
+        let own: Vec<bool> = self.local.roles.iter().map(|&r| r == Role::Own).collect();
+        match self.local.admit(|i| own[i], (&[], &[]), streams) {
             Ok(loads) => self.set_loads(&loads),
             Err(why) => self.broken(&why),
         }
@@ -651,9 +652,9 @@ impl<'c> DistributedSimulation<'c> {
             &l.owned,
             pad,
         );
-        // Streams in increasing id: the own bodies, each neighbour's ghosts,
-        // the obstacles within reach.
-        let mut streams = vec![self.local.take_owned((&[], &[]))];
+        // Streams in increasing id: each neighbour's ghosts, the obstacles
+        // within reach; the own bodies stay where they are.
+        let mut streams = Vec::with_capacity(drawn.arrived.len() + 1);
         for (r, records) in &drawn.arrived {
             streams.push(
                 records
@@ -671,7 +672,7 @@ impl<'c> DistributedSimulation<'c> {
             );
         }
         // Moving walls are few and go where they please: every rank keeps them.
-        let near = |b: &Bounds| !drawn.reach.is_empty() && drawn.reach.overlaps(b);
+        let near = |b: &Bounds| drawn.reach.overlaps(b);
         streams.push(
             self.obstacles
                 .iter()
@@ -687,7 +688,7 @@ impl<'c> DistributedSimulation<'c> {
                 })
                 .collect(),
         );
-        self.take_in(streams);
+        self.keep_owned(streams);
         let local = &self.local;
         let index = |id: u32| local.index_of(id).expect("a body just taken in");
         let send = drawn
@@ -756,7 +757,6 @@ impl<'c> DistributedSimulation<'c> {
         let start = Instant::now();
         let size = self.comm.size() as usize;
         let mut outbox: Vec<Vec<BodyRecord>> = vec![Vec::new(); size];
-        let mut kept = Vec::new();
         let owner_of: Vec<(u32, i32)> = l
             .owned
             .iter()
@@ -764,13 +764,13 @@ impl<'c> DistributedSimulation<'c> {
             .map(|(&i, &r)| (l.world.id(i), r))
             .collect();
         let (force, torque) = self.forces.all();
-        let mine = self.local.take_owned((force, torque));
-        for (mut e, &r) in mine.into_iter().zip(&new_owner) {
-            e.work = [0.0; 2];
+        let mut stays = vec![false; l.world.bodies.len()];
+        for (&i, &r) in l.owned.iter().zip(&new_owner) {
             if r == me {
-                kept.push(e);
+                stays[i] = true;
             } else {
-                outbox[r as usize].push(BodyRecord::of(e.id, &e.body, e.force, e.torque));
+                let rec = BodyRecord::of(l.world.id(i), &l.world.bodies[i], force[i], torque[i]);
+                outbox[r as usize].push(rec);
             }
         }
         let sent: usize = outbox.iter().map(Vec::len).sum();
@@ -799,7 +799,8 @@ impl<'c> DistributedSimulation<'c> {
                     .collect::<Vec<_>>(),
             );
         }
-        let owned = (kept.len() + arrived.len()) as u64;
+        let kept = stays.iter().filter(|&&k| k).count();
+        let owned = (kept + arrived.len()) as u64;
         let mut all = 0u64;
         self.comm
             .all_reduce_into(&owned, &mut all, SystemOperation::sum());
@@ -812,8 +813,13 @@ impl<'c> DistributedSimulation<'c> {
         if let Err(why) = self.migrate_history(&owner_of) {
             self.broken(&why);
         }
-        streams.push(kept);
-        self.take_in(streams);
+        let (force, torque) = self.forces.all();
+        let (force, torque) = (force.to_vec(), torque.to_vec());
+        match self.local.admit(|i| stays[i], (&force, &torque), streams) {
+            Ok(loads) => self.set_loads(&loads),
+            Err(why) => self.broken(&why),
+        }
+        self.local.work.iter_mut().for_each(|w| *w = [0.0; 2]);
         self.lists = GhostLists::default();
         self.logged = vec![false; self.local.world.bodies.len()];
         self.lists_stale = true;
