@@ -100,7 +100,8 @@ pub struct Contact {
     /// Overlap of the rounded surfaces, reach − gap (> 0).
     pub depth: f64,
     /// The share of its spring the contact carries (1 but for creases
-    /// crossing near a corner, see `ramp`), and its gradient.
+    /// crossing near a corner or at a shallow angle, see `ramp` and
+    /// `CROSSING_FADE_SINE`), and its gradient.
     pub weight: f64,
     pub gradient: WeightGradient,
 }
@@ -108,6 +109,19 @@ pub struct Contact {
 /// Sines of angles below this make two creases parallel: their overlap is
 /// carried by the corners at its ends.
 const PARALLEL_SINE: f64 = 1e-12;
+
+/// Below this sine of the angle between two creases (10°), their crossing's
+/// contact fades out ([`ramp`] of the sine over it), leaving their overlap to
+/// the corners at its ends, as for parallel creases. Where two creases
+/// cross at an angle θ, a sideways move of one moves the crossing along the
+/// creases 1/sin θ times as far, and so does the weight that ramps it near
+/// their ends: unfaded, the weight's gradient, and the torque the spring's
+/// energy exerts through it, would grow as 1/sin θ without bound, enough
+/// at near-parallel creases to fling a resting grain off at hundreds of
+/// metres per second in one step. Faded, they stay within a few times the
+/// contact's own force, and the contact still appears and leaves with no
+/// weight, so the energy stays continuous.
+const CROSSING_FADE_SINE: f64 = 0.173_648_177_666_930_33;
 
 /// Scratch reused between body pairs.
 #[derive(Debug, Default)]
@@ -530,7 +544,31 @@ fn crease_contact(a: &Solid, la: u32, b: &Solid, lb: u32, reach: f64) -> Option<
     if !(g > -reach && g < reach) {
         return None;
     }
-    // The weight: 1 away from the creases' ends, falling to 0 at them.
+    let (weight, gradient) = crossing_weight(&lines, len_a, len_b, reach, a.body.x, b.body.x);
+    Some(Found {
+        kind: FeatureKind::CreaseCrease,
+        own: la,
+        other: lb,
+        point: (p + q) * 0.5,
+        normal: n,
+        depth: reach - g,
+        weight,
+        gradient,
+    })
+}
+
+/// The weight of a crossing of creases of lengths `len_a` and `len_b` along
+/// `lines` (bodies centred at `xa` and `xb`), and its gradient: 1 away from
+/// the creases' ends, falling to 0 at them ([`ramp`]), and faded at shallow
+/// angles ([`CROSSING_FADE_SINE`]).
+fn crossing_weight(
+    lines: &Lines,
+    len_a: f64,
+    len_b: f64,
+    reach: f64,
+    xa: DVec3,
+    xb: DVec3,
+) -> (f64, WeightGradient) {
     let end_ramp = |x: f64, len: f64| {
         let (near, sign) = if x <= len - x {
             (x, 1.0)
@@ -539,18 +577,15 @@ fn crease_contact(a: &Solid, la: u32, b: &Solid, lb: u32, reach: f64) -> Option<
         };
         (ramp(near / reach), sign * ramp_slope(near / reach) / reach)
     };
-    let ((wa, dwa), (wb, dwb)) = (end_ramp(sigma, len_a), end_ramp(tau, len_b));
-    let (ds, dt) = lines.gradients(a.body.x, b.body.x);
-    Some(Found {
-        kind: FeatureKind::CreaseCrease,
-        own: la,
-        other: lb,
-        point: (p + q) * 0.5,
-        normal: n,
-        depth: reach - g,
-        weight: wa * wb,
-        gradient: ds.scaled(wb * dwa).plus(&dt.scaled(wa * dwb)),
-    })
+    let ((wa, dwa), (wb, dwb)) = (end_ramp(lines.sigma, len_a), end_ramp(lines.tau, len_b));
+    let x = lines.d.sqrt() / CROSSING_FADE_SINE;
+    let (wf, dwf) = (ramp(x), ramp_slope(x) / CROSSING_FADE_SINE);
+    let (ds, dt) = lines.gradients(xa, xb);
+    let gradient = ds
+        .scaled(wb * dwa * wf)
+        .plus(&dt.scaled(wa * dwb * wf))
+        .plus(&lines.sine_gradient().scaled(wa * wb * dwf));
+    (wa * wb * wf, gradient)
 }
 
 /// How much of its spring a crossing of creases keeps at a distance `x`
@@ -646,6 +681,20 @@ impl Lines {
     }
 }
 
+impl Lines {
+    /// The gradient of sin θ = |ua × ub| with respect to the two bodies'
+    /// motions: a rotation δθ of a turns ua by δθ × ua, which changes the
+    /// sine by δθ · (ua × (ub × n̂)), n̂ = ua × ub / sin θ; likewise for b.
+    fn sine_gradient(&self) -> WeightGradient {
+        let n = self.ua.cross(self.ub) / self.d.sqrt();
+        WeightGradient {
+            force_a: DVec3::ZERO,
+            torque_a: self.ua.cross(self.ub.cross(n)),
+            torque_b: self.ub.cross(n.cross(self.ua)),
+        }
+    }
+}
+
 /// The gradient of a contact's weight with respect to the motions of its
 /// bodies: d/dx_a (the translation of a; that of b is its opposite), d/dθ_a
 /// and d/dθ_b (rotations about the centres of mass).
@@ -670,6 +719,123 @@ impl WeightGradient {
             force_a: self.force_a + o.force_a,
             torque_a: self.torque_a + o.torque_a,
             torque_b: self.torque_b + o.torque_b,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    const REACH: f64 = 1e-3;
+
+    /// A crease of body a (centred at `xa`) from `a0` along `ua`, and one of
+    /// body b; each 10 halo sums long.
+    #[derive(Clone, Copy)]
+    struct Creases {
+        xa: DVec3,
+        a0: DVec3,
+        ua: DVec3,
+        xb: DVec3,
+        b0: DVec3,
+        ub: DVec3,
+    }
+
+    const LEN: f64 = 10.0 * REACH;
+
+    /// Crease a along x from the origin; crease b at `angle` to it in the
+    /// plane half a reach above, crossing a at `sigma` and itself at `tau`.
+    fn crossing(angle: f64, sigma: f64, tau: f64) -> Creases {
+        let ub = DVec3::new(angle.cos(), angle.sin(), 0.0);
+        let at = DVec3::new(sigma, 0.0, 0.5 * REACH);
+        Creases {
+            xa: DVec3::new(0.3, 0.2, -0.4) * LEN,
+            a0: DVec3::ZERO,
+            ua: DVec3::X,
+            xb: DVec3::new(0.2, -0.1, 0.5) * LEN,
+            b0: at - ub * tau,
+            ub,
+        }
+    }
+
+    fn weight(c: &Creases) -> (f64, WeightGradient) {
+        let lines = Lines::new(c.a0, c.ua, c.b0, c.ub).expect("not parallel");
+        crossing_weight(&lines, LEN, LEN, REACH, c.xa, c.xb)
+    }
+
+    fn turn(x: DVec3, p: DVec3, u: DVec3, r: DVec3) -> (DVec3, DVec3) {
+        let q = DQuat::from_scaled_axis(r);
+        (x + q * (p - x), q * u)
+    }
+
+    /// The weight's gradient is its derivative: central differences of the
+    /// weight under small translations of a and rotations of a and b about
+    /// their centres, near the creases' ends and at angles inside and
+    /// outside the fade.
+    #[test]
+    fn a_crossings_weight_gradient_is_its_derivative() {
+        let h = 1e-9;
+        for angle in [1.2, 0.5, 0.15, 0.06] {
+            for (sigma, tau) in [(0.4, 5.0), (0.7, 0.3), (9.5, 0.8)] {
+                let c = crossing(angle, sigma * REACH, tau * REACH);
+                let (w, g) = weight(&c);
+                assert!(w > 0.0 && w < 1.0, "{angle} {sigma} {tau}: {w}");
+                for k in 0..3 {
+                    let e = DVec3::AXES[k] * h;
+                    let moved = |s: f64| {
+                        let mut m = c;
+                        m.a0 += e * s;
+                        weight(&m).0
+                    };
+                    let turned_a = |s: f64| {
+                        let mut m = c;
+                        (m.a0, m.ua) = turn(c.xa, c.a0, c.ua, e * s);
+                        weight(&m).0
+                    };
+                    let turned_b = |s: f64| {
+                        let mut m = c;
+                        (m.b0, m.ub) = turn(c.xb, c.b0, c.ub, e * s);
+                        weight(&m).0
+                    };
+                    let fd = |f: &dyn Fn(f64) -> f64| (f(1.0) - f(-1.0)) / (2.0 * h);
+                    let scale = 1.0 / REACH;
+                    for (name, numeric, exact) in [
+                        ("translation of a", fd(&moved), g.force_a[k]),
+                        ("rotation of a", fd(&turned_a), g.torque_a[k]),
+                        ("rotation of b", fd(&turned_b), g.torque_b[k]),
+                    ] {
+                        assert!(
+                            (numeric - exact).abs() <= 1e-5 * scale,
+                            "angle {angle}, at ({sigma}, {tau}) reach, {name} about axis {k}: \
+                             difference quotient {numeric}, gradient {exact}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Near-parallel creases: their crossing runs along them 1/sin θ times
+    /// as fast as they move, but the weight's gradient stays within a few
+    /// times 1/reach (translation) and lever/reach (rotation), at every
+    /// angle down to the parallel and everywhere along the ramps.
+    #[test]
+    fn a_crossings_weight_gradient_stays_bounded_at_shallow_angles() {
+        for sine in [0.5, 0.1, 1e-2, 1e-3, 1e-6, 1e-10] {
+            for k in 1..40 {
+                let sigma = 0.05 * k as f64 * REACH;
+                let c = crossing(f64::asin(sine), sigma, 0.5 * REACH);
+                let (_, g) = weight(&c);
+                let lever = 2.0 * LEN;
+                let worst = (g.force_a.length() * REACH)
+                    .max(g.torque_a.length() * REACH / lever)
+                    .max(g.torque_b.length() * REACH / lever);
+                assert!(
+                    worst <= 20.0,
+                    "sin θ = {sine}, σ = {sigma}: gradient {worst} times 1/reach"
+                );
+            }
         }
     }
 }
