@@ -82,7 +82,8 @@ pub enum Command {
         tridem plot out/hopper --list")]
     Plot(PlotArgs),
     /// Plot columns of a CSV file against one another: one line per value
-    /// of --by, a marker at every point (SVG and PNG).
+    /// of --by, a marker at every point of a series of up to 16, error bars
+    /// from --error (SVG and PNG).
     #[command(after_help = "Example:\n  \
         tridem chart out/counts.csv --x ranks --y ghosts_max --by partitioner --log-x \\\n      \
         --output out/ghosts.svg")]
@@ -260,6 +261,10 @@ pub struct ChartArgs {
     /// The column whose values name the series (default: one series).
     #[arg(long)]
     pub by: Option<String>,
+    /// The column of each point's error (the half-width of its error bar;
+    /// an empty cell: no bar).
+    #[arg(long)]
+    pub error: Option<String>,
     /// A logarithmic x axis.
     #[arg(long)]
     pub log_x: bool,

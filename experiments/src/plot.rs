@@ -262,6 +262,18 @@ pub fn partition_summary(path: &Path, records: &[PartitionRecord]) -> Res {
 pub struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
+    /// Per point, the half-width of its error bar (empty: none drawn).
+    pub errors: Vec<f64>,
+}
+
+impl Series {
+    /// The points with their error bars' ends: (x, y - e, y + e).
+    fn bars(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.points
+            .iter()
+            .zip(&self.errors)
+            .map(|(&(x, y), &e)| (x, y - e, y + e))
+    }
 }
 
 /// How a figure's axes and marks look.
@@ -326,6 +338,9 @@ where
     Ok(())
 }
 
+/// The most points of a series that [`lines`] marks one by one.
+const MARKED_POINTS: usize = 16;
+
 /// Lines of `series` (x, y), legend outside the data.
 pub fn lines(
     path: &Path,
@@ -334,7 +349,14 @@ pub fn lines(
     series: &[Series],
     look: Look,
 ) -> Res {
-    let (x0, x1, y0, y1) = extent(series.iter().flat_map(|s| s.points.iter()), &look);
+    let ends: Vec<(f64, f64)> = series
+        .iter()
+        .flat_map(|s| s.bars().flat_map(|(x, lo, hi)| [(x, lo), (x, hi)]))
+        .collect();
+    let (x0, x1, y0, y1) = extent(
+        series.iter().flat_map(|s| s.points.iter()).chain(&ends),
+        &look,
+    );
     let whole_x = whole(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let names: Vec<String> = series.iter().map(|s| s.name.clone()).collect();
     svg_and_png!(path, (960, 500), |root: &DrawingArea<_, Shift>| -> Res {
@@ -362,10 +384,14 @@ pub fn lines(
                         s.points.iter().copied(),
                         c.stroke_width(2),
                     ))?;
-                    if look.markers {
+                    // A long series is a curve: markers would bury it.
+                    if look.markers && s.points.len() <= MARKED_POINTS {
                         chart
                             .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
                     }
+                    chart.draw_series(s.bars().zip(&s.points).map(|((x, lo, hi), p)| {
+                        ErrorBar::new_vertical(x, lo, p.1, hi, c.stroke_width(1), 8)
+                    }))?;
                 }
             }};
         }

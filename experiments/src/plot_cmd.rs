@@ -92,6 +92,7 @@ fn plot(
                 .copied()
                 .zip(steps.get(n).unwrap_or(&[]).iter().copied())
                 .collect(),
+            errors: Vec::new(),
         })
         .collect();
     let svg = dir.join(format!("{file}.svg"));
@@ -241,6 +242,7 @@ pub fn chart(args: &crate::cli::ChartArgs) -> CliResult {
     };
     let (x, y) = (column(&args.x)?, column(&args.y)?);
     let by = args.by.as_deref().map(column).transpose()?;
+    let error = args.error.as_deref().map(column).transpose()?;
     let mut series: Vec<Series> = Vec::new();
     for (k, line) in rows.enumerate().filter(|(_, l)| !l.trim().is_empty()) {
         let cells: Vec<&str> = line.split(',').map(str::trim).collect();
@@ -251,17 +253,34 @@ pub fn chart(args: &crate::cli::ChartArgs) -> CliResult {
                 .ok_or_else(|| fail(format!("line {}: column {what} holds no number", k + 2)))
         };
         let point = (at(x, &args.x)?, at(y, &args.y)?);
+        // An empty error cell: that point has no bar (a fitted curve's).
+        let e = match error {
+            Some(i) if cells.get(i).is_some_and(|c| !c.is_empty()) => at(i, "error")?,
+            _ => 0.0,
+        };
         let name = by.map_or(args.y.clone(), |b| cells.get(b).unwrap_or(&"").to_string());
-        match series.iter_mut().find(|s| s.name == name) {
-            Some(s) => s.points.push(point),
-            None => series.push(Series {
-                name,
-                points: vec![point],
-            }),
-        }
+        let s = match series.iter().position(|s| s.name == name) {
+            Some(k) => &mut series[k],
+            None => {
+                series.push(Series {
+                    name,
+                    points: Vec::new(),
+                    errors: Vec::new(),
+                });
+                series.last_mut().expect("just pushed")
+            }
+        };
+        s.points.push(point);
+        s.errors.push(e);
     }
     for s in &mut series {
-        s.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut order: Vec<usize> = (0..s.points.len()).collect();
+        order.sort_by(|&a, &b| s.points[a].0.total_cmp(&s.points[b].0));
+        s.points = order.iter().map(|&k| s.points[k]).collect();
+        s.errors = order.iter().map(|&k| s.errors[k]).collect();
+        if error.is_none() {
+            s.errors.clear();
+        }
     }
     let caption = args
         .title

@@ -615,6 +615,7 @@ fn over_steps(groups: &[Group], field: &str, scale: f64, metrics_every: u64) -> 
                     (l["step"].as_f64().unwrap_or(0.0), v)
                 })
                 .collect(),
+            errors: Vec::new(),
         })
         .collect()
 }

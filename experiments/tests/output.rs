@@ -457,9 +457,9 @@ fn render_draws_a_picture_of_a_step() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// `tridem chart` draws a CSV's columns, one series per value of --by, and
-/// refuses a column the file lacks or a cell that is no number, naming the
-/// file and its line.
+/// `tridem chart` draws a CSV's columns, one series per value of --by, with
+/// error bars from --error, and refuses a column the file lacks or a cell
+/// that is no number, naming the file and its line.
 #[test]
 fn chart_draws_columns_of_a_csv_and_names_what_is_wrong() {
     let dir = temp("chart");
@@ -506,5 +506,23 @@ fn chart_draws_columns_of_a_csv_and_names_what_is_wrong() {
     ]);
     assert_eq!(code, 2);
     assert!(err.contains("line 3") && err.contains("ghosts"), "{err}");
+    // Error bars: one per point with an error cell, none where it is empty;
+    // a cell that is no number is refused like any other.
+    std::fs::write(&csv, "ranks,ghosts,spread\n2,400,30\n4,470,\n8,500,10\n").unwrap();
+    let draw = |error: &[&str]| {
+        let base = ["chart", c, "--x", "ranks", "--y", "ghosts", "--output"];
+        let (code, _, err) = tridem(&[&base[..], &[svg.to_str().unwrap()], error].concat());
+        assert_eq!(code, 0, "{err}");
+        std::fs::read_to_string(&svg).unwrap()
+    };
+    let lines = |t: &str| t.matches("<polyline").count() + t.matches("<line").count();
+    let (bare, barred) = (draw(&[]), draw(&["--error", "spread"]));
+    assert!(lines(&barred) > lines(&bare), "error bars drawn");
+    std::fs::write(&csv, "ranks,ghosts,spread\n2,400,wide\n").unwrap();
+    let (code, _, err) = tridem(&[
+        "chart", c, "--x", "ranks", "--y", "ghosts", "--error", "spread", "--output", "x.svg",
+    ]);
+    assert_eq!(code, 2);
+    assert!(err.contains("line 2") && err.contains("error"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
