@@ -141,13 +141,14 @@ fn set_overrides_scene_values_and_refuses_bad_ones() {
 #[test]
 fn shipped_scenes_parse() {
     let dir = std::path::PathBuf::from(scene(""));
-    let mut names: Vec<_> = std::fs::read_dir(&dir)
-        .expect("scenes/ exists")
+    let mut names: Vec<_> = [dir.clone(), dir.join("validation")]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(d).expect("scenes/ and scenes/validation/ exist"))
         .map(|e| e.expect("readable entry").path())
         .filter(|p| p.extension().is_some_and(|x| x == "toml"))
         .collect();
     names.sort();
-    assert!(names.len() >= 4, "{names:?}");
+    assert!(names.len() >= 9, "{names:?}");
     for p in names {
         dem::scene::Scene::load(&p).unwrap_or_else(|e| panic!("{e}"));
     }
