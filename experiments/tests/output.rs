@@ -182,15 +182,18 @@ fn contact_lines_join_the_bodies_in_contact() {
         assert_eq!(vec3(&force, r), n + vec3(&tangential, r));
         assert!(overlap[r] > 0.0);
         // The hopper's materials all have μ = 0.3: a sliding contact's
-        // friction is held at μ |F_n|, a sticking one's is below it (the
-        // normal force's part from a crossing's weight aside, 1e-3).
+        // friction is held at μ |F_n|, a sticking one's is below it. F_n as
+        // written holds, besides the spring and dashpot friction is capped
+        // by, the part of a crease crossing's weight gradient, ½ k δ² ∇w:
+        // about δ/Λ of the spring's force, and δ is a few µm against a
+        // halo sum Λ of 0.5 mm here, so 1e-2.
         let (t, cap) = (vec3(&tangential, r).length(), 0.3 * n.length());
         match slides[r] {
             1 => assert!(
-                (t - cap).abs() <= 1e-3 * cap,
+                (t - cap).abs() <= 1e-2 * cap,
                 "contact {r} slides: {t} of {cap}"
             ),
-            _ => assert!(t <= cap * (1.0 + 1e-3), "contact {r} sticks: {t} of {cap}"),
+            _ => assert!(t <= cap * (1.0 + 1e-2), "contact {r} sticks: {t} of {cap}"),
         }
     }
     assert!(slides.iter().any(|&s| s == 1), "none slides");
