@@ -262,17 +262,19 @@ pub fn partition_summary(path: &Path, records: &[PartitionRecord]) -> Res {
 pub struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
-    /// Per point, the half-width of its error bar (empty: none drawn).
+    /// Per point, the half-width of its error bar (empty, or NaN at a
+    /// point: none drawn).
     pub errors: Vec<f64>,
 }
 
 impl Series {
-    /// The points with their error bars' ends: (x, y - e, y + e).
-    fn bars(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+    /// The points that have error bars, with the bars' ends: (x, y - e, y, y + e).
+    fn bars(&self) -> impl Iterator<Item = (f64, f64, f64, f64)> + '_ {
         self.points
             .iter()
             .zip(&self.errors)
-            .map(|(&(x, y), &e)| (x, y - e, y + e))
+            .filter(|(_, e)| e.is_finite())
+            .map(|(&(x, y), &e)| (x, y - e, y, y + e))
     }
 }
 
@@ -351,7 +353,7 @@ pub fn lines(
 ) -> Res {
     let ends: Vec<(f64, f64)> = series
         .iter()
-        .flat_map(|s| s.bars().flat_map(|(x, lo, hi)| [(x, lo), (x, hi)]))
+        .flat_map(|s| s.bars().flat_map(|(x, lo, _, hi)| [(x, lo), (x, hi)]))
         .collect();
     let (x0, x1, y0, y1) = extent(
         series.iter().flat_map(|s| s.points.iter()).chain(&ends),
@@ -389,8 +391,8 @@ pub fn lines(
                         chart
                             .draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled())))?;
                     }
-                    chart.draw_series(s.bars().zip(&s.points).map(|((x, lo, hi), p)| {
-                        ErrorBar::new_vertical(x, lo, p.1, hi, c.stroke_width(1), 8)
+                    chart.draw_series(s.bars().map(|(x, lo, y, hi)| {
+                        ErrorBar::new_vertical(x, lo, y, hi, c.stroke_width(1), 8)
                     }))?;
                 }
             }};

@@ -256,7 +256,7 @@ pub fn chart(args: &crate::cli::ChartArgs) -> CliResult {
         // An empty error cell: that point has no bar (a fitted curve's).
         let e = match error {
             Some(i) if cells.get(i).is_some_and(|c| !c.is_empty()) => at(i, "error")?,
-            _ => 0.0,
+            _ => f64::NAN,
         };
         let name = by.map_or(args.y.clone(), |b| cells.get(b).unwrap_or(&"").to_string());
         let s = match series.iter().position(|s| s.name == name) {
