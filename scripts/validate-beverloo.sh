@@ -5,7 +5,7 @@
 # the fill leaves), fits the law, and prints the results table of
 # docs/validation.md ("Discharge through a slot"), stamped; the figure goes
 # to docs/figures/beverloo.svg (and .png), the numbers to
-# out/validation/beverloo.csv. About ten minutes on two cores.
+# out/validation/beverloo.csv. About half an hour on two cores.
 # Usage: scripts/validate-beverloo.sh [RUN_DIR]   (RUN_DIR: analyse runs
 #        already made there, as out/validation/beverloo/<width>/)
 set -euo pipefail
@@ -108,8 +108,10 @@ print()
 print(f"Grains: d = {1000*d:.2f} mm (volume-equivalent diameter), ρ_b = {rho_b:.0f} kg/m³ "
       f"(the settled bed, `bed` probe, mean of the runs), L = {1000*L:.0f} mm.")
 print()
+chi2 = float(np.sum(((pred - W) / E) ** 2))
 print(f"Fitted with the exponent 3/2 (W^(2/3) linear in D, weighted): "
-      f"C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}. "
+      f"C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}; "
+      f"χ² = {chi2:.1f} for {len(D) - 2} degrees of freedom. "
       f"With the exponent free (W = c (D − D0)^n): n = {n_free:.2f}, D0 = {1000*D0:.1f} mm "
       f"({D0/d:.2f} d).")
 PY
