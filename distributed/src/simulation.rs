@@ -280,11 +280,15 @@ impl<'c> DistributedSimulation<'c> {
         self.comm.abort(70)
     }
 
-    /// Keeps the own bodies in place and merges in `streams` (each in
-    /// increasing id), all with zero forces.
-    fn keep_owned(&mut self, streams: Vec<Vec<Entry>>) {
-        let own: Vec<bool> = self.local.roles.iter().map(|&r| r == Role::Own).collect();
-        match self.local.admit(|i| own[i], (&[], &[]), streams) {
+    /// Keeps the bodies `keep` marks in place and merges in `streams` (each
+    /// in increasing id, with the forces they carry); the kept keep their
+    /// forces when `carry_forces`, else zero.
+    fn admit(&mut self, keep: &[bool], carry_forces: bool, streams: Vec<Vec<Entry>>) {
+        let (force, torque) = match carry_forces {
+            true => self.forces.all(),
+            false => (&[][..], &[][..]),
+        };
+        match self.local.admit(|i| keep[i], (force, torque), streams) {
             Ok(loads) => self.set_loads(&loads),
             Err(why) => self.broken(&why),
         }
@@ -688,7 +692,8 @@ impl<'c> DistributedSimulation<'c> {
                 })
                 .collect(),
         );
-        self.keep_owned(streams);
+        let own: Vec<bool> = self.local.roles.iter().map(|&r| r == Role::Own).collect();
+        self.admit(&own, false, streams);
         let local = &self.local;
         let index = |id: u32| local.index_of(id).expect("a body just taken in");
         let send = drawn
@@ -813,12 +818,7 @@ impl<'c> DistributedSimulation<'c> {
         if let Err(why) = self.migrate_history(&owner_of) {
             self.broken(&why);
         }
-        let (force, torque) = self.forces.all();
-        let (force, torque) = (force.to_vec(), torque.to_vec());
-        match self.local.admit(|i| stays[i], (&force, &torque), streams) {
-            Ok(loads) => self.set_loads(&loads),
-            Err(why) => self.broken(&why),
-        }
+        self.admit(&stays, true, streams);
         self.local.work.iter_mut().for_each(|w| *w = [0.0; 2]);
         self.lists = GhostLists::default();
         self.logged = vec![false; self.local.world.bodies.len()];
