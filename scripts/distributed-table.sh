@@ -4,7 +4,10 @@
 #  1. per scene, 1 rank x 1 thread, 1 rank x CORES threads and CORES ranks x
 #     1 thread, alternating, REPEAT times each: medians and min-max of
 #     ms/step, the ratio of ranks to threads, the parallel efficiency
-#     T(1x1) / (CORES T(CORES x 1));
+#     T(1x1) / (CORES T(CORES x 1)); and the machine's ceiling on that
+#     efficiency: CORES independent 1 x 1 runs at once, one per core, share
+#     the caches, memory and clock of the cores, so T(1x1) / T(the slowest
+#     copy) is the most any split of the work into CORES ranks can reach;
 #  2. the exchange: the wait with a blocking and a non-blocking exchange on
 #     silo-1000, alternating;
 #  3. memory: peak resident memory per rank of silo on 1, 2 and 4 ranks, less
@@ -28,14 +31,26 @@ v = sorted(float(x) for x in sys.stdin.read().split())
 print('%.3f [%.3f, %.3f]' % (s.median(v), v[0], v[-1]))"; }
 med() { python3 -c "
 import sys, statistics as s; print(s.median(float(x) for x in sys.stdin.read().split()))"; }
+# seconds of the slowest of CORES copies of the 1 x 1 run of SCENE for
+# STEPS, started together, copy k pinned to core k as mpirun binds rank k
+at_once() {
+  local dir k
+  dir=$(mktemp -d)
+  for k in $(seq 0 $((cores - 1))); do
+    taskset -c "$((k % $(nproc)))" $tridem run "$1" --steps "$2" --threads 1 --json --quiet 2>/dev/null >"$dir/$k" &
+  done
+  wait
+  cat "$dir"/* | python3 -c "import json,sys; print(max(json.loads(l)['seconds'] for l in sys.stdin))"
+  rm -rf "$dir"
+}
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 echo "Measured by \`scripts/distributed-table.sh $repeat $cores\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d); $repeat alternating runs each: median [min, max]."
 echo
-echo "| scene | steps | 1 x 1 (ms/step) | 1 x $cores threads | $cores ranks x 1 | ranks / threads | efficiency | busy imbalance | ghosts per rank |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| scene | steps | 1 x 1 (ms/step) | 1 x $cores threads | $cores ranks x 1 | ranks / threads | efficiency | ceiling ($cores copies at once) | efficiency / ceiling | busy imbalance | ghosts per rank |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|"
 for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo.toml:1000; do
   scene=scenes/${spec%%:*}; steps=${spec##*:}
-  one=(); threads=(); ranks=(); imb=(); ghosts=()
+  one=(); threads=(); ranks=(); copies=(); imb=(); ghosts=()
   for _ in $(seq "$repeat"); do
     one+=("$($tridem run "$scene" --steps "$steps" --threads 1 --json --quiet 2>/dev/null | json 'j["seconds"]')")
     threads+=("$($tridem run "$scene" --steps "$steps" --threads "$cores" --json --quiet 2>/dev/null | json 'j["seconds"]')")
@@ -43,14 +58,17 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo.toml:
     ranks+=("$(echo "$j" | json 'j["seconds"]')")
     imb+=("$(echo "$j" | json 'j["busy_imbalance"]')")
     ghosts+=("$(echo "$j" | json 'j["per_step_over_ranks"]["ghosts_received"]["mean"]')")
+    copies+=("$(at_once "$scene" "$steps")")
   done
   ms() { for x in "$@"; do python3 -c "print(1e3*$x/$steps)"; done; }
-  ratios=(); effs=()
+  ratios=(); effs=(); ceilings=(); of=()
   for k in $(seq 0 $((repeat - 1))); do
     ratios+=("$(python3 -c "print(${ranks[$k]}/${threads[$k]})")")
     effs+=("$(python3 -c "print(${one[$k]}/($cores*${ranks[$k]}))")")
+    ceilings+=("$(python3 -c "print(${one[$k]}/${copies[$k]})")")
+    of+=("$(python3 -c "print(${copies[$k]}/($cores*${ranks[$k]}))")")
   done
-  echo "| ${spec%%:*} | $steps | $(ms "${one[@]}" | spread) | $(ms "${threads[@]}" | spread) | $(ms "${ranks[@]}" | spread) | $(printf '%s\n' "${ratios[@]}" | spread) | $(printf '%s\n' "${effs[@]}" | spread) | $(printf '%s\n' "${imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${ghosts[@]}" | med | xargs printf '%.0f') |"
+  echo "| ${spec%%:*} | $steps | $(ms "${one[@]}" | spread) | $(ms "${threads[@]}" | spread) | $(ms "${ranks[@]}" | spread) | $(printf '%s\n' "${ratios[@]}" | spread) | $(printf '%s\n' "${effs[@]}" | spread) | $(printf '%s\n' "${ceilings[@]}" | spread) | $(printf '%s\n' "${of[@]}" | spread) | $(printf '%s\n' "${imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${ghosts[@]}" | med | xargs printf '%.0f') |"
 done
 echo
 echo "Exchange on silo-1000 (1,500 steps, $cores ranks): the wait is the time inside the call that completes the ghost exchange, the same measure in both modes."
