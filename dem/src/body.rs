@@ -1,5 +1,6 @@
 //! Rigid bodies: a shared mesh in body coordinates, and the state that moves it.
 
+pub use crate::drive::{Drive, Profile};
 use glam::{DMat3, DQuat, DVec3};
 
 /// A rigid particle or a static obstacle.
@@ -25,29 +26,6 @@ pub struct Body {
     pub drive: Option<Box<Drive>>,
 }
 
-/// The prescribed motion of an obstacle: a constant velocity of its frame's
-/// origin and a constant angular velocity about that origin, from its pose
-/// at time 0. Its pose is a function of the time alone ([`Drive::pose`]), so
-/// every process that knows the time places it to the same bits, whatever
-/// it did before.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Drive {
-    /// The pose at time 0.
-    pub x0: DVec3,
-    pub q0: DQuat,
-    pub velocity: DVec3,
-    /// World axes, rad/s.
-    pub angular_velocity: DVec3,
-}
-
-impl Drive {
-    /// Position and orientation at time `t`: x0 + v t, and q0 turned by ω t.
-    pub fn pose(&self, t: f64) -> (DVec3, DQuat) {
-        let turn = crate::integrate::exp_map(self.angular_velocity * t);
-        (self.x0 + self.velocity * t, (turn * self.q0).normalize())
-    }
-}
-
 impl Body {
     /// An obstacle: no force moves it (it stands still or is driven).
     pub fn is_static(&self) -> bool {
@@ -61,8 +39,8 @@ impl Body {
 
     /// A driven obstacle placed where its drive puts it at time `t`.
     pub fn follow_drive(&mut self, t: f64) {
-        if let Some(d) = &self.drive {
-            (self.x, self.q) = d.pose(t);
+        if let Some(d) = &mut self.drive {
+            (self.x, self.q, self.v) = d.place(t);
         }
     }
 
@@ -75,7 +53,7 @@ impl Body {
     /// prescribed one).
     pub fn omega(&self) -> DVec3 {
         match &self.drive {
-            Some(d) => d.angular_velocity,
+            Some(d) => d.omega(),
             None => omega_of(self.q, self.inv_inertia_body, self.l),
         }
     }

@@ -16,6 +16,7 @@ pub mod busy_workers;
 pub mod checkpoint;
 pub mod contact;
 pub mod distance;
+pub mod drive;
 pub mod effects;
 pub mod frame;
 pub mod integrate;

@@ -64,6 +64,9 @@ impl Simulation {
         sim.forces.reset(n);
         for (b, s) in sim.world.bodies.iter_mut().zip(&checkpoint.bodies) {
             (b.x, b.q, b.v, b.l) = (s.x, s.q, s.v, s.l);
+            // A driven wall's pose is the time's (the same bits), and its
+            // angular velocity too, which the checkpoint does not hold.
+            b.follow_drive(checkpoint.time);
         }
         sim.world.time = checkpoint.time;
         sim.world.step = checkpoint.step;

@@ -2,7 +2,7 @@
 //! velocity puts it, carries what rests on it by friction as mechanics says,
 //! and the work it does is booked, so that the energy books still balance.
 //! Rotation on, no global damping.
-use dem::body::Drive;
+use dem::body::{Drive, Profile};
 use dem::integrate::exp_map;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
@@ -179,6 +179,84 @@ fn a_resumed_run_with_a_moving_wall_gives_the_same_bits() {
     assert_eq!(straight.energies(), resumed.energies());
 }
 
+/// A floor whose velocity ramps up over 0.1 s, then holds (a table), under
+/// a block that sticks to it (the ramp's acceleration is a tenth of μ g):
+/// the block ends at the floor's velocity (0.5%), the floor's work is the
+/// block's kinetic energy and what sliding took (1%), the books balance (1%
+/// of the work), and the floor stands where the area under its table puts
+/// it: x₀ + v_end (t − 0.05 s) once the ramp is done, to rounding.
+#[test]
+fn a_floor_ramped_up_by_a_table_carries_a_block() {
+    let v = DVec3::new(0.04, -0.03, 0.0);
+    let motion = "velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.1, 0.04, -0.03, 0.0]]";
+    let mut sim = Simulation::new(&parse(&block_on_floor(DVec3::ZERO, motion, WALLS)).unwrap());
+    let start = sim.energies().total();
+    run(&mut sim, 40_000);
+    let (block, floor) = (&sim.world.bodies[0], &sim.world.bodies[1]);
+    let horizontal = DVec3::new(block.v.x, block.v.y, 0.0);
+    assert!(
+        (horizontal - v).length() <= 5e-3 * v.length(),
+        "block at {horizontal}, floor at {v}"
+    );
+    let work = -booked(&sim, "wall_motion");
+    let kinetic = 0.5 * block.mass * horizontal.length_squared();
+    let slid = booked(&sim, "friction");
+    assert!(
+        (work - kinetic - slid).abs() <= 1e-2 * work,
+        "floor's work {work} J, block's kinetic energy {kinetic} J, sliding {slid} J"
+    );
+    let e = sim.energies();
+    assert!(
+        (e.total() - start).abs() <= 1e-2 * work,
+        "books off by {} J, the floor did {work} J: {e:?}",
+        e.total() - start
+    );
+    let t = sim.world.time;
+    let x = DVec3::new(0.0, 0.0, -0.01) + v * (t - 0.05);
+    assert!(
+        (floor.x - x).length() <= 1e-12 * x.length(),
+        "{} against {x}",
+        floor.x
+    );
+    assert_eq!(floor.v, v, "held at the last row's velocity");
+}
+
+/// Stopped in the middle of its tables and resumed, a run whose wall is
+/// spun up and pushed by tables goes on to the same bits.
+#[test]
+fn a_resumed_run_with_a_wall_on_tables_gives_the_same_bits() {
+    let text = block_on_floor(
+        DVec3::new(0.02, 0.0, 0.0),
+        "velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.02, 0.03, 0.0, 0.001], [0.04, 0.0, 0.01, 0.0]]\n\
+         angular_velocity_table = [[0.01, 0.0, 0.0, 0.0], [0.03, 0.0, 0.0, -1.5]]",
+        WALLS,
+    );
+    let scene = parse(&text).unwrap();
+    let mut straight = Simulation::new(&scene);
+    run(&mut straight, 3_000);
+    let checkpoint = straight.checkpoint();
+    run(&mut straight, 3_000);
+    let mut resumed = Simulation::resume(&scene, &checkpoint).unwrap();
+    run(&mut resumed, 3_000);
+    let bits = |s: &Simulation| {
+        s.world
+            .bodies
+            .iter()
+            .flat_map(|b| [b.x.to_array(), b.v.to_array(), b.l.to_array()])
+            .flatten()
+            .map(f64::to_bits)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&straight), bits(&resumed));
+    assert_eq!(straight.energies(), resumed.energies());
+    let table = &resumed.world.bodies[1];
+    assert_eq!(
+        table.omega(),
+        DVec3::new(0.0, 0.0, -1.5),
+        "held after the last row"
+    );
+}
+
 /// A moving wall needs the effect that books its work, and the effect needs
 /// a moving wall; a non-finite velocity is refused. Each refusal names the
 /// line.
@@ -196,6 +274,27 @@ fn moving_walls_are_declared_together_with_their_effect() {
             WALLS,
             "must be finite",
         ),
+        (
+            "velocity = [0.1, 0.0, 0.0]\nvelocity_table = [[0.0, 0.1, 0.0, 0.0]]",
+            WALLS,
+            "not both",
+        ),
+        (
+            "velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.2, 1.0, 0.0, 0.0], [0.1, 0.0, 0.0, 0.0]]",
+            WALLS,
+            "times must increase, but row 3",
+        ),
+        (
+            "velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.1, inf, 0.0, 0.0]]",
+            WALLS,
+            "must be finite",
+        ),
+        ("velocity_table = []", WALLS, "has no rows"),
+        (
+            "angular_velocity_table = [[0.0, 0.0, 0.0, 1.0], [1.0, 0.0, 1.0, 1.0]]",
+            WALLS,
+            "one axis",
+        ),
     ];
     for (motion, effects, says) in cases {
         let e = parse(&block_on_floor(DVec3::ZERO, motion, effects)).unwrap_err();
@@ -208,12 +307,12 @@ fn moving_walls_are_declared_together_with_their_effect() {
 #[test]
 fn a_drive_places_its_wall_by_the_time_alone() {
     let q0 = exp_map(DVec3::new(0.1, -0.2, 0.3));
-    let d = Drive {
-        x0: DVec3::new(1e6, -2e6, 3.0),
+    let d = Drive::new(
+        DVec3::new(1e6, -2e6, 3.0),
         q0,
-        velocity: DVec3::new(0.5, 0.0, -0.25),
-        angular_velocity: DVec3::new(0.0, 0.0, std::f64::consts::PI),
-    };
+        Profile::Constant(DVec3::new(0.5, 0.0, -0.25)),
+        Profile::Constant(DVec3::new(0.0, 0.0, std::f64::consts::PI)),
+    );
     let (x, q) = d.pose(2.0);
     assert_eq!(x, DVec3::new(1e6 + 1.0, -2e6, 2.5));
     // Half a turn a second: two seconds is a whole turn, back to q0.

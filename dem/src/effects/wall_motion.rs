@@ -2,9 +2,11 @@
 //! velocity, and the work they do on the particles.
 //!
 //! An obstacle of the scene may move (`velocity`, `angular_velocity` on its
-//! `[[obstacles]]` entry, about its frame's origin `position`): its pose at
-//! time t is x(t) = x₀ + v t, q(t) = exp(ω t) q₀ ([`crate::body::Drive`]),
-//! set by the integrator at every step, whatever the forces on it. Contacts
+//! `[[obstacles]]` entry, about its frame's origin `position`, each constant
+//! or a piecewise-linear table in time, `velocity_table` and
+//! `angular_velocity_table`): its pose at time t is
+//! x(t) = x₀ + ∫₀ᵗ v, q(t) = exp(∫₀ᵗ ω) q₀ ([`crate::drive`]), set by the
+//! integrator at every step, whatever the forces on it. Contacts
 //! see its surface move (their dashpots and friction use its velocity), and
 //! this effect books the power it feeds into the particles: at a contact, the
 //! force F and torque τ (about the wall's origin) the particle puts on the
@@ -49,7 +51,8 @@ pub struct WallMotionEffect {
 /// the wall.
 fn wall_power(world: &World, pair: &PairForce) -> f64 {
     let on = |b: &Body, force: DVec3, torque: DVec3| match &b.drive {
-        Some(d) => -(force.dot(d.velocity) + torque.dot(d.angular_velocity)),
+        // The wall's velocities where it was placed for this step.
+        Some(_) => -(force.dot(b.v) + torque.dot(b.omega())),
         None => 0.0,
     };
     on(&world.bodies[pair.a], pair.force, pair.torque_a)

@@ -11,7 +11,7 @@ use super::{
     positive, Census, Ctx, Deal, OutputSection, Parallel, Scene, SceneError, MAX_PARTICLES,
     MAX_STEPS,
 };
-use crate::body::{Body, Drive};
+use crate::body::{Body, Drive, Profile};
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
 use crate::effects::{ContactParams, Declare, Effects, WallMotionParams, KINDS};
 use crate::material::{damping_ratio, Material};
@@ -429,20 +429,20 @@ fn add_obstacle(
         bodies.warnings.extend(warning);
     }
     // A moving wall is where its drive puts it at every time, 0 included.
-    let (x, q) = drive.map_or((x, q), |d| d.pose(0.0));
+    let (x, q) = drive.as_ref().map_or((x, q), |d| d.pose(0.0));
     let id = bodies.census.bodies() as u32;
     let body = Body {
         shape: world.shapes.len() - 1,
         material: mat,
         x,
         q,
-        v: drive.map_or(DVec3::ZERO, |d| d.velocity),
+        v: drive.as_ref().map_or(DVec3::ZERO, |d| d.velocity.at(0.0)),
         l: DVec3::ZERO,
         inv_mass: 0.0,
         mass: f64::INFINITY,
         inv_inertia_body: DMat3::ZERO,
         inertia_body: DMat3::ZERO,
-        drive: drive.map(Box::new),
+        drive: drive.clone().map(Box::new),
     };
     bodies.census.push(Run {
         ids: id..id + 1,
@@ -459,8 +459,10 @@ fn add_obstacle(
 }
 
 /// An obstacle's prescribed motion, from its pose at time 0 (`None`: it
-/// stands still). Refused unless finite, and unless the scene declares the
-/// effect that books the walls' work.
+/// stands still). Refused unless finite, unless each velocity is given once
+/// (constant or table), unless a table's times increase and its angular rows
+/// keep one axis, and unless the scene declares the effect that books the
+/// walls' work.
 fn drive(
     ctx: &Ctx,
     span: Range<usize>,
@@ -468,15 +470,34 @@ fn drive(
     (x0, q0): (DVec3, DQuat),
     walls_move: bool,
 ) -> Result<Option<Drive>, SceneError> {
-    let velocity = DVec3::from_array(o.velocity.unwrap_or_default());
-    let angular_velocity = DVec3::from_array(o.angular_velocity.unwrap_or_default());
-    if !velocity.is_finite() || !angular_velocity.is_finite() {
-        return ctx.err(
-            span,
-            "an obstacle's velocity and angular_velocity must be finite",
-        );
+    let velocity = profile(ctx, span.clone(), "velocity", o.velocity, &o.velocity_table)?;
+    let angular_velocity = profile(
+        ctx,
+        span.clone(),
+        "angular_velocity",
+        o.angular_velocity,
+        &o.angular_velocity_table,
+    )?;
+    if let Profile::Table(knots) = &angular_velocity {
+        let widest = knots.iter().map(|k| k.1).fold(DVec3::ZERO, |a, b| {
+            if b.length() > a.length() {
+                b
+            } else {
+                a
+            }
+        });
+        let bent = knots
+            .iter()
+            .any(|k| k.1.cross(widest).length() > 1e-12 * k.1.length() * widest.length());
+        if bent {
+            return ctx.err(
+                span,
+                "angular_velocity_table: every row must turn about one axis (parallel \
+                 angular velocities): a turn about a changing axis has no closed form",
+            );
+        }
     }
-    if velocity == DVec3::ZERO && angular_velocity == DVec3::ZERO {
+    if velocity.is_zero() && angular_velocity.is_zero() {
         return Ok(None);
     }
     if !walls_move {
@@ -486,12 +507,50 @@ fn drive(
              the work moving walls do",
         );
     }
-    Ok(Some(Drive {
-        x0,
-        q0,
-        velocity,
-        angular_velocity,
-    }))
+    Ok(Some(Drive::new(x0, q0, velocity, angular_velocity)))
+}
+
+/// One of an obstacle's velocities: the constant `key`, or `key_table`, or
+/// zero; refused when both are given, when a value is not finite, or when a
+/// table is empty or its times do not increase.
+fn profile(
+    ctx: &Ctx,
+    span: Range<usize>,
+    key: &str,
+    constant: Option<[f64; 3]>,
+    table: &Option<Vec<[f64; 4]>>,
+) -> Result<Profile, SceneError> {
+    let finite = |v: &[f64]| v.iter().all(|c| c.is_finite());
+    match (constant, table) {
+        (Some(_), Some(_)) => ctx.err(span, format!("give {key} or {key}_table, not both")),
+        (Some(v), None) if !finite(&v) => ctx.err(span, format!("{key} must be finite")),
+        (Some(v), None) => Ok(Profile::Constant(DVec3::from_array(v))),
+        (None, None) => Ok(Profile::Constant(DVec3::ZERO)),
+        (None, Some(rows)) => {
+            if rows.is_empty() {
+                return ctx.err(span, format!("{key}_table has no rows"));
+            }
+            if let Some(k) = rows.iter().position(|r| !finite(r)) {
+                return ctx.err(span, format!("{key}_table: row {} must be finite", k + 1));
+            }
+            if let Some(k) = rows.windows(2).position(|w| w[1][0] <= w[0][0]) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "{key}_table: times must increase, but row {} has t = {:e} after t = {:e}",
+                        k + 2,
+                        rows[k + 1][0],
+                        rows[k][0]
+                    ),
+                );
+            }
+            let knots = rows
+                .iter()
+                .map(|r| (r[0], DVec3::new(r[1], r[2], r[3])))
+                .collect();
+            Ok(Profile::Table(knots))
+        }
+    }
 }
 
 /// A moving wall must stay where numbers are finite over the whole run (a
@@ -518,7 +577,7 @@ fn check_drive(
         );
     }
     let reach = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
-    let speed = d.velocity.length() + d.angular_velocity.length() * reach;
+    let speed = d.velocity.largest() + d.angular_velocity.largest() * reach;
     let travel = speed * dt;
     Ok((travel > thinnest / 2.0).then(|| {
         format!(

@@ -8,7 +8,7 @@
 //! output's layout, the stable step) reads the census instead, so that no
 //! rank keeps a list of every body.
 
-use crate::body::Drive;
+use crate::body::{Drive, Profile};
 use crate::world::Fnv1a;
 use glam::{DMat3, DQuat, DVec3};
 use std::ops::Range;
@@ -140,7 +140,22 @@ pub(crate) fn hash_body(
         q.to_array().into_iter().for_each(|c| h.f64(c));
     }
     if let Some(d) = drive {
-        let v = [d.velocity, d.angular_velocity];
-        v.iter().flat_map(|v| v.to_array()).for_each(|c| h.f64(c));
+        // Constant velocities hash as their values alone; a table as its
+        // length and knots after them.
+        let profiles = [&d.velocity, &d.angular_velocity];
+        for p in profiles {
+            if let Profile::Constant(v) = p {
+                v.to_array().into_iter().for_each(|c| h.f64(c));
+            }
+        }
+        for p in profiles {
+            if let Profile::Table(knots) = p {
+                h.u64(knots.len() as u64);
+                for (t, v) in knots {
+                    h.f64(*t);
+                    v.to_array().into_iter().for_each(|c| h.f64(c));
+                }
+            }
+        }
     }
 }

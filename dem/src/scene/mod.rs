@@ -38,6 +38,9 @@
 //! # velocity = [0.02, 0.0, 0.0]         # a moving wall (m/s, of `position`), and
 //! # angular_velocity = [0.0, 0.0, 1.0]  # its turn about `position` (rad/s): both
 //! #                                     # need `wall_motion = {}` in [effects]
+//! # velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.5, 0.02, 0.0, 0.0]]
+//! #                  # or tables of [t, x, y, z]: linear between rows, held
+//! #                  # beyond them (angular_velocity_table: rows parallel)
 //!
 //! [kernel]               # contact detection (docs/dem.md, docs/distance.md)
 //! method = "hybrid"      # brute, penalty or hybrid

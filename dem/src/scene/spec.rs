@@ -186,4 +186,11 @@ pub(super) struct ObstacleSpec {
     pub(super) velocity: Option<[f64; 3]>,
     #[serde(default)]
     pub(super) angular_velocity: Option<[f64; 3]>,
+    /// The same as tables of rows [t, x, y, z], times increasing: linear
+    /// between rows, the first row's value before it and the last's after
+    /// (instead of the constant keys). Angular rows keep one axis.
+    #[serde(default)]
+    pub(super) velocity_table: Option<Vec<[f64; 4]>>,
+    #[serde(default)]
+    pub(super) angular_velocity_table: Option<Vec<[f64; 4]>>,
 }
