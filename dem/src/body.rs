@@ -37,6 +37,12 @@ impl Body {
         self.is_static() && self.drive.is_none()
     }
 
+    /// Whether the body takes part in contacts: false for an obstacle
+    /// removed by its drive (as of the time it was last placed).
+    pub fn is_present(&self) -> bool {
+        self.drive.as_ref().is_none_or(|d| d.present())
+    }
+
     /// A driven obstacle placed where its drive puts it at time `t`.
     pub fn follow_drive(&mut self, t: f64) {
         if let Some(d) = &mut self.drive {

@@ -13,6 +13,10 @@
 //! must keep one axis (its rows parallel; the scene refuses others): a drum
 //! spun up, held and stopped, say. Before the first knot a table holds the
 //! first row's value, after the last the last row's.
+//!
+//! An obstacle may also be removed at a time (a gate pulled out of a silo's
+//! outlet): from then on it takes part in no contact. Whether it is there is
+//! a function of the time too.
 
 use glam::{DQuat, DVec3};
 
@@ -90,9 +94,13 @@ pub struct Drive {
     pub velocity: Profile,
     /// World axes, rad/s.
     pub angular_velocity: Profile,
+    /// The time from which the obstacle is gone (`None`: never).
+    pub removed_at: Option<f64>,
     /// The angular velocity at the time the obstacle was last placed
     /// ([`Drive::place`]): what contacts see of its turning.
     omega: DVec3,
+    /// Whether it was there at the time last placed.
+    present: bool,
 }
 
 impl Drive {
@@ -104,14 +112,36 @@ impl Drive {
             q0,
             velocity,
             angular_velocity,
+            removed_at: None,
             omega,
+            present: true,
         }
+    }
+
+    /// The same drive, the obstacle gone from time `t` on.
+    pub fn removed_at(self, t: f64) -> Drive {
+        Drive {
+            removed_at: Some(t),
+            present: t > 0.0,
+            ..self
+        }
+    }
+
+    /// Whether the obstacle moves at all (a drive may only remove it).
+    pub fn moves(&self) -> bool {
+        !(self.velocity.is_zero() && self.angular_velocity.is_zero())
+    }
+
+    /// Whether the obstacle was there at the time last placed.
+    pub fn present(&self) -> bool {
+        self.present
     }
 
     /// The pose and velocity at time `t`, and the angular velocity kept for
     /// [`Drive::omega`].
     pub fn place(&mut self, t: f64) -> (DVec3, DQuat, DVec3) {
         self.omega = self.angular_velocity.at(t);
+        self.present = self.removed_at.is_none_or(|r| t < r);
         let (x, q) = self.pose(t);
         (x, q, self.velocity.at(t))
     }

@@ -257,6 +257,54 @@ fn a_resumed_run_with_a_wall_on_tables_gives_the_same_bits() {
     );
 }
 
+/// A floor removed at 0.05 s under a block resting on it: before, the block
+/// rests (its height within a halo of where it settled); after, nothing
+/// holds it, and over the next N steps its velocity changes by exactly
+/// −g N h (velocity Verlet is exact under a constant force) while its
+/// horizontal velocity stays put. Stopped after the removal and resumed, the
+/// run goes on to the same bits.
+/// With and without a neighbour list.
+#[test]
+fn a_removed_floor_lets_its_load_fall_freely() {
+    let text = block_on_floor(DVec3::ZERO, "remove_at = 0.05", "");
+    removed_floor(&text);
+    removed_floor(&text.replace("contact = {}", "contact = { skin = 1e-3 }"));
+}
+
+fn removed_floor(text: &str) {
+    let scene = parse(text).unwrap();
+    let mut sim = Simulation::new(&scene);
+    let h = 5e-6;
+    // To the first step wholly after the removal.
+    let before = (0.05 / h) as u64 - 1;
+    run(&mut sim, before);
+    let resting = sim.world.bodies[0].x.z;
+    assert!(
+        sim.world.bodies[0].v.length() < 1e-3,
+        "settled on the floor"
+    );
+    run(&mut sim, 2);
+    let v0 = sim.world.bodies[0].v;
+    let checkpoint = sim.checkpoint();
+    let n = 4000;
+    run(&mut sim, n);
+    let v = sim.world.bodies[0].v;
+    let g = 9.81 * n as f64 * h;
+    assert!(
+        (v.z - (v0.z - g)).abs() <= 1e-9 * g,
+        "fell at {} after {} s, free fall gives {}",
+        v.z,
+        n as f64 * h,
+        v0.z - g
+    );
+    assert_eq!((v.x, v.y), (v0.x, v0.y));
+    assert!(sim.world.bodies[0].x.z < resting - 0.5 * 9.81 * (n as f64 * h).powi(2) * 0.99);
+    let mut resumed = Simulation::resume(&scene, &checkpoint).unwrap();
+    run(&mut resumed, n);
+    let bits = |s: &Simulation| s.world.bodies[0].x.to_array().map(f64::to_bits);
+    assert_eq!(bits(&sim), bits(&resumed));
+}
+
 /// A moving wall needs the effect that books its work, and the effect needs
 /// a moving wall; a non-finite velocity is refused. Each refusal names the
 /// line.
@@ -295,6 +343,12 @@ fn moving_walls_are_declared_together_with_their_effect() {
             WALLS,
             "one axis",
         ),
+        (
+            "remove_at = -1.0",
+            "",
+            "remove_at must be a time after the start",
+        ),
+        ("remove_at = 0.5", WALLS, "no obstacle sets a velocity"),
     ];
     for (motion, effects, says) in cases {
         let e = parse(&block_on_floor(DVec3::ZERO, motion, effects)).unwrap_err();

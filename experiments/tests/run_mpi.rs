@@ -209,7 +209,7 @@ fn a_thousand_particles_split_to_the_bit() {
     same_as_one_process("silo-1000", &scene("silo-1000.toml"), "500", 1000, &splits);
 }
 
-/// Moving walls (a paddle spun up by a table, a sliding floor) on every rank, each
+/// Moving walls (a paddle spun up by a table, a sliding floor, a shelf removed) on every rank, each
 /// placed by the time alone: split, repartitioned and resumed across rank
 /// counts, the run is one process's to the bit, its books and probes
 /// included.

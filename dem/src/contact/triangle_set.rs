@@ -408,6 +408,14 @@ impl TriangleSet {
                     let i = group.body as usize;
                     let (body, halo) = (&bodies[i], halos[i]);
                     let key = (body.x, body.q, halo);
+                    if !body.is_present() {
+                        // Gone: a box that overlaps nothing, so no pair has it.
+                        group.owned_box = Bounds::EMPTY;
+                        *filled_box.0.get_mut() = Bounds::EMPTY;
+                        *fresh.get_mut() = CURRENT;
+                        *pose = None;
+                        return;
+                    }
                     // Unmoved, and filled unless filling is left to the tasks (a
                     // set followed lazily and then updated at once must not keep
                     // the stale triangles of a body no task needed).

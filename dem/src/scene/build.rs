@@ -73,7 +73,8 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
     for o in &spec.obstacles {
         add_obstacle(ctx, o, walls_move, (dt, end_time), &mut bodies)?;
     }
-    if walls_move && !bodies.world.bodies.iter().any(|b| b.drive.is_some()) {
+    let moving = |b: &Body| b.drive.as_ref().is_some_and(|d| d.moves());
+    if walls_move && !bodies.world.bodies.iter().any(moving) {
         let start = spec.effects.span().start;
         let key = key_offset(&ctx.text[start..], WallMotionParams::NAME);
         let at = key.map_or(start, |o| start + o);
@@ -497,8 +498,22 @@ fn drive(
             );
         }
     }
-    if velocity.is_zero() && angular_velocity.is_zero() {
-        return Ok(None);
+    if let Some(t) = o.remove_at {
+        if !(t.is_finite() && t > 0.0) {
+            return ctx.err(
+                span,
+                format!("remove_at must be a time after the start, got {t:e}"),
+            );
+        }
+    }
+    let drive = Drive::new(x0, q0, velocity, angular_velocity);
+    let drive = match o.remove_at {
+        Some(t) => drive.removed_at(t),
+        None => drive,
+    };
+    if !drive.moves() {
+        // Removed, or standing still: no work to book.
+        return Ok(o.remove_at.map(|_| drive));
     }
     if !walls_move {
         return ctx.err(
@@ -507,7 +522,7 @@ fn drive(
              the work moving walls do",
         );
     }
-    Ok(Some(Drive::new(x0, q0, velocity, angular_velocity)))
+    Ok(Some(drive))
 }
 
 /// One of an obstacle's velocities: the constant `key`, or `key_table`, or

@@ -157,5 +157,8 @@ pub(crate) fn hash_body(
                 }
             }
         }
+        if let Some(t) = d.removed_at {
+            h.f64(t);
+        }
     }
 }

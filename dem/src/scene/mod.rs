@@ -41,6 +41,7 @@
 //! # velocity_table = [[0.0, 0.0, 0.0, 0.0], [0.5, 0.02, 0.0, 0.0]]
 //! #                  # or tables of [t, x, y, z]: linear between rows, held
 //! #                  # beyond them (angular_velocity_table: rows parallel)
+//! # remove_at = 0.5  # gone from t = 0.5 s on: no contact with it after
 //!
 //! [kernel]               # contact detection (docs/dem.md, docs/distance.md)
 //! method = "hybrid"      # brute, penalty or hybrid

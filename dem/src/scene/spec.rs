@@ -193,4 +193,8 @@ pub(super) struct ObstacleSpec {
     pub(super) velocity_table: Option<Vec<[f64; 4]>>,
     #[serde(default)]
     pub(super) angular_velocity_table: Option<Vec<[f64; 4]>>,
+    /// The time (s) from which the obstacle is gone: it takes part in no
+    /// contact after it (a gate pulled out).
+    #[serde(default)]
+    pub(super) remove_at: Option<f64>,
 }

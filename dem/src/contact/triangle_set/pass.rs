@@ -141,6 +141,12 @@ impl<'p> PassSet<'p> {
         let body = &world.bodies[group.body as usize];
         let halo = set.halos[g];
         let mesh = &world.shapes[body.shape];
+        if !body.is_present() {
+            // Gone: a box that overlaps nothing, so no pair reads its slots.
+            // SAFETY: as for the box below: the group's own slot, while FILLING.
+            unsafe { *set.filled_boxes[g].0.get() = Bounds::EMPTY };
+            return;
+        }
         super::world_vertices(body, mesh, vertices);
         let mut bbox = Bounds::EMPTY;
         for (slot, t) in set.triangles[group.owned.clone()]
