@@ -305,6 +305,47 @@ fn removed_floor(text: &str) {
     assert_eq!(bits(&sim), bits(&resumed));
 }
 
+/// What a removal does to the books, as docs/dem.md says: across the step
+/// that removes the floor under a resting block, the books' total drops by
+/// the energy the floor's contacts (spring and friction) stored just before,
+/// within a hundredth of it; in the steps before and after, it stays put to
+/// a thousandth of that.
+#[test]
+fn a_removal_takes_its_contacts_stored_energy_out_of_the_books() {
+    let text = block_on_floor(DVec3::ZERO, "remove_at = 0.05", "");
+    let mut sim = Simulation::new(&parse(&text).unwrap());
+    let stored = |sim: &Simulation| -> f64 {
+        let e = sim.energies();
+        e.effects
+            .iter()
+            .filter(|x| x.effect == "contact" || x.effect == "friction")
+            .map(|x| x.stored)
+            .sum()
+    };
+    run(&mut sim, (0.05 / 5e-6) as u64 - 10);
+    // (total, stored) each step, to two steps past the one that removes it.
+    let mut books = vec![(sim.energies().total(), stored(&sim))];
+    while books.len() < 3 || books[books.len() - 3].1 > 0.0 {
+        assert!(books.len() < 100, "the floor was never removed");
+        run(&mut sim, 1);
+        books.push((sim.energies().total(), stored(&sim)));
+    }
+    let k = books.len() - 3;
+    let ((e0, _), (e1, held), (e2, gone), (e3, _)) =
+        (books[k - 2], books[k - 1], books[k], books[k + 1]);
+    assert!(
+        held > 0.0 && gone == 0.0,
+        "the block rested on the floor, then nothing held it"
+    );
+    assert!(
+        (e2 - e1 + held).abs() <= 1e-2 * held,
+        "dropped by {}, the contacts held {held} J",
+        e1 - e2
+    );
+    assert!((e1 - e0).abs() <= 1e-3 * held, "before: {}", e1 - e0);
+    assert!((e3 - e2).abs() <= 1e-3 * held, "after: {}", e3 - e2);
+}
+
 /// A moving wall needs the effect that books its work, and the effect needs
 /// a moving wall; a non-finite velocity is refused. Each refusal names the
 /// line.
