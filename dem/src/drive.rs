@@ -71,6 +71,22 @@ impl Profile {
     pub fn is_zero(&self) -> bool {
         self.largest() == 0.0
     }
+
+    /// Whether every value is parallel to one direction (zero counts), to
+    /// rounding: the condition for exp(∫ω) to be the rotation.
+    pub fn keeps_one_axis(&self) -> bool {
+        let Profile::Table(knots) = self else {
+            return true;
+        };
+        let mut values = knots.iter().map(|k| k.1);
+        let Some(widest) = values
+            .clone()
+            .max_by(|a, b| a.length().total_cmp(&b.length()))
+        else {
+            return true;
+        };
+        values.all(|v| v.cross(widest).length() <= 1e-12 * v.length() * widest.length())
+    }
 }
 
 /// A table's value at `t`: linear between the knots around it, held beyond

@@ -56,6 +56,31 @@ fn run(sim: &mut Simulation, steps: u64) {
     }
 }
 
+/// Every body's position, velocity and angular momentum, as bits.
+fn state_bits(s: &Simulation) -> Vec<u64> {
+    s.world
+        .bodies
+        .iter()
+        .flat_map(|b| [b.x.to_array(), b.v.to_array(), b.l.to_array()])
+        .flatten()
+        .map(f64::to_bits)
+        .collect()
+}
+
+/// `scene` run 6,000 steps straight and stopped at 3,000 and resumed: the
+/// same bits and books. Returns the resumed run.
+fn stopped_and_resumed(scene: &Scene) -> Simulation {
+    let mut straight = Simulation::new(scene);
+    run(&mut straight, 3_000);
+    let checkpoint = straight.checkpoint();
+    run(&mut straight, 3_000);
+    let mut resumed = Simulation::resume(scene, &checkpoint).unwrap();
+    run(&mut resumed, 3_000);
+    assert_eq!(state_bits(&straight), state_bits(&resumed));
+    assert_eq!(straight.energies(), resumed.energies());
+    resumed
+}
+
 fn booked(sim: &Simulation, effect: &str) -> f64 {
     let e = sim.energies();
     e.effects
@@ -159,24 +184,7 @@ fn a_resumed_run_with_a_moving_wall_gives_the_same_bits() {
         "velocity = [0.03, 0.0, 0.001]\nangular_velocity = [0.0, 0.0, 1.0]",
         WALLS,
     );
-    let scene = parse(&text).unwrap();
-    let mut straight = Simulation::new(&scene);
-    run(&mut straight, 3_000);
-    let checkpoint = straight.checkpoint();
-    run(&mut straight, 3_000);
-    let mut resumed = Simulation::resume(&scene, &checkpoint).unwrap();
-    run(&mut resumed, 3_000);
-    let bits = |s: &Simulation| {
-        s.world
-            .bodies
-            .iter()
-            .flat_map(|b| [b.x.to_array(), b.v.to_array(), b.l.to_array()])
-            .flatten()
-            .map(f64::to_bits)
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(bits(&straight), bits(&resumed));
-    assert_eq!(straight.energies(), resumed.energies());
+    stopped_and_resumed(&parse(&text).unwrap());
 }
 
 /// A floor whose velocity ramps up over 0.1 s, then holds (a table), under
@@ -231,24 +239,7 @@ fn a_resumed_run_with_a_wall_on_tables_gives_the_same_bits() {
          angular_velocity_table = [[0.01, 0.0, 0.0, 0.0], [0.03, 0.0, 0.0, -1.5]]",
         WALLS,
     );
-    let scene = parse(&text).unwrap();
-    let mut straight = Simulation::new(&scene);
-    run(&mut straight, 3_000);
-    let checkpoint = straight.checkpoint();
-    run(&mut straight, 3_000);
-    let mut resumed = Simulation::resume(&scene, &checkpoint).unwrap();
-    run(&mut resumed, 3_000);
-    let bits = |s: &Simulation| {
-        s.world
-            .bodies
-            .iter()
-            .flat_map(|b| [b.x.to_array(), b.v.to_array(), b.l.to_array()])
-            .flatten()
-            .map(f64::to_bits)
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(bits(&straight), bits(&resumed));
-    assert_eq!(straight.energies(), resumed.energies());
+    let resumed = stopped_and_resumed(&parse(&text).unwrap());
     let table = &resumed.world.bodies[1];
     assert_eq!(
         table.omega(),
@@ -301,8 +292,7 @@ fn removed_floor(text: &str) {
     assert!(sim.world.bodies[0].x.z < resting - 0.5 * 9.81 * (n as f64 * h).powi(2) * 0.99);
     let mut resumed = Simulation::resume(&scene, &checkpoint).unwrap();
     run(&mut resumed, n);
-    let bits = |s: &Simulation| s.world.bodies[0].x.to_array().map(f64::to_bits);
-    assert_eq!(bits(&sim), bits(&resumed));
+    assert_eq!(state_bits(&sim), state_bits(&resumed));
 }
 
 /// What a removal does to the books, as docs/dem.md says: across the step

@@ -479,24 +479,12 @@ fn drive(
         o.angular_velocity,
         &o.angular_velocity_table,
     )?;
-    if let Profile::Table(knots) = &angular_velocity {
-        let widest = knots.iter().map(|k| k.1).fold(DVec3::ZERO, |a, b| {
-            if b.length() > a.length() {
-                b
-            } else {
-                a
-            }
-        });
-        let bent = knots
-            .iter()
-            .any(|k| k.1.cross(widest).length() > 1e-12 * k.1.length() * widest.length());
-        if bent {
-            return ctx.err(
-                span,
-                "angular_velocity_table: every row must turn about one axis (parallel \
-                 angular velocities): a turn about a changing axis has no closed form",
-            );
-        }
+    if !angular_velocity.keeps_one_axis() {
+        return ctx.err(
+            span,
+            "angular_velocity_table: every row must turn about one axis (parallel \
+             angular velocities): a turn about a changing axis has no closed form",
+        );
     }
     if let Some(t) = o.remove_at {
         if !(t.is_finite() && t > 0.0) {
