@@ -1,7 +1,7 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
-use crate::effects::{Effect, Forces, RotationParams, StepContext, StepStats};
+use crate::effects::{Effect, Forces, RotationParams, Setting, StepContext, StepStats};
 use crate::frame::{EnergyBooks, Frame, FrameContact};
 use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
@@ -48,7 +48,7 @@ impl Simulation {
         let mut sim = Simulation::pipeline(scene);
         sim.evaluate_forces();
         // Time counts from the first step.
-        sim.timings = SectionTimes::for_effects(&sim.effects);
+        sim.timings = section_times(&sim.effects);
         sim
     }
 
@@ -128,7 +128,7 @@ impl Simulation {
             totals: StepStats::default(),
             timings: SectionTimes::default(),
         };
-        sim.timings = SectionTimes::for_effects(&sim.effects);
+        sim.timings = section_times(&sim.effects);
         sim
     }
 
@@ -471,11 +471,28 @@ fn check_finite<'a>(
 
 /// The effects `scene` declares, in pipeline order, with no state yet.
 pub fn build_effects(scene: &Scene) -> Vec<Box<dyn Effect>> {
+    let setting = Setting {
+        world: &scene.world,
+        kernel: scene.kernel,
+        effects: &scene.effects,
+    };
     scene
         .effects
         .iter()
-        .filter_map(|e| e.build(scene))
+        .filter_map(|e| e.build(&setting))
         .collect()
+}
+
+/// Zero time for each effect of the pipeline `effects`.
+fn section_times(effects: &[Box<dyn Effect>]) -> SectionTimes {
+    SectionTimes {
+        effects: effects.iter().map(|e| (e.name(), 0.0)).collect(),
+        detecting_effect: effects
+            .iter()
+            .find(|e| e.detects_contacts())
+            .map(|e| e.name()),
+        ..SectionTimes::default()
+    }
 }
 
 /// Per shape: the largest distance of a vertex from the body's origin.

@@ -3,7 +3,6 @@
 //! not speed up with more threads shows here. Wall-clock seconds, summed over
 //! steps; for finding bottlenecks, never asserted on by tests.
 
-use crate::effects::Effect;
 use std::ops::AddAssign;
 use std::time::Instant;
 
@@ -52,18 +51,6 @@ pub struct SectionTimes {
 }
 
 impl SectionTimes {
-    /// Zero time for the pipeline's `effects`.
-    pub fn for_effects(effects: &[Box<dyn Effect>]) -> SectionTimes {
-        SectionTimes {
-            effects: effects.iter().map(|e| (e.name(), 0.0)).collect(),
-            detecting_effect: effects
-                .iter()
-                .find(|e| e.detects_contacts())
-                .map(|e| e.name()),
-            ..SectionTimes::default()
-        }
-    }
-
     /// Integration and effects: all the time spent in steps.
     pub fn total(&self) -> f64 {
         self.integration + self.effects.iter().map(|e| e.1).sum::<f64>()

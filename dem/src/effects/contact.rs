@@ -30,14 +30,15 @@
 //! told 0 then.
 
 use super::rotation::RotationParams;
-use super::{Books, Declare, Effect, Forces, MaterialParam, PairForce, StepContext, FORCE_GRAIN};
+use super::{
+    Books, Declare, Effect, Forces, MaterialParam, PairForce, Setting, StepContext, FORCE_GRAIN,
+};
 use crate::body::Body;
 use crate::contact::{Contact, Culling, Detector};
 use crate::distance::Options;
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
 use crate::mesh::Features;
-use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -92,11 +93,11 @@ impl Declare for ContactParams {
             )),
         }
     }
-    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>> {
-        let rotation = scene.effects.has::<RotationParams>();
+    fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>> {
+        let rotation = setting.effects.has::<RotationParams>();
         Some(Box::new(ContactEffect::new(
-            &scene.world,
-            scene.kernel,
+            setting.world,
+            setting.kernel,
             Detector::with_skin(self.skin).with_culling(self.culling),
             rotation,
         )))

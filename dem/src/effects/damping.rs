@@ -1,8 +1,7 @@
 //! Global viscous damping: F = −γ m v, τ = −γ_rot L (rates in 1/s).
 
-use super::{Books, Declare, Effect, Forces, StepContext};
+use super::{Books, Declare, Effect, Forces, Setting, StepContext};
 use crate::ledger::Ledger;
-use crate::scene::Scene;
 use crate::world::World;
 use serde::Deserialize;
 
@@ -25,7 +24,7 @@ impl Declare for DampingParams {
             false => Err("damping rates must be finite and non-negative".into()),
         }
     }
-    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+    fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         Some(Box::new(DampingEffect {
             linear: self.linear,
             angular: self.angular,

@@ -6,8 +6,9 @@
 //! by name.
 
 use super::Effect;
+use crate::distance::Options;
 use crate::material::Material;
-use crate::scene::Scene;
+use crate::world::World;
 use serde::de::DeserializeOwned;
 use std::any::Any;
 use std::fmt::Debug;
@@ -28,7 +29,16 @@ pub trait Declare: Debug + Clone + PartialEq + Send + Sync + DeserializeOwned + 
     }
     /// The effect's unit of the step pipeline (`None` for an effect that
     /// changes how the step integrates instead of adding forces).
-    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>>;
+    fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>>;
+}
+
+/// What an effect is built from: the world it acts on, the distance kernel's
+/// options and the other declared effects; not the scene, which the effect
+/// layer does not know.
+pub struct Setting<'a> {
+    pub world: &'a World,
+    pub kernel: Options,
+    pub effects: &'a Effects,
 }
 
 /// A material parameter an effect needs.
@@ -71,7 +81,7 @@ fn read<T: Declare>(table: toml::Value) -> Result<Box<dyn Declared>, String> {
 /// A declared effect's parameters, whatever the effect.
 pub trait Declared: Debug + Send + Sync {
     fn name(&self) -> &'static str;
-    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>>;
+    fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>>;
     fn as_any(&self) -> &dyn Any;
     fn clone_box(&self) -> Box<dyn Declared>;
     fn same_as(&self, other: &dyn Declared) -> bool;
@@ -81,8 +91,8 @@ impl<T: Declare> Declared for T {
     fn name(&self) -> &'static str {
         T::NAME
     }
-    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>> {
-        Declare::build(self, scene)
+    fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>> {
+        Declare::build(self, setting)
     }
     fn as_any(&self) -> &dyn Any {
         self

@@ -24,13 +24,12 @@
 
 use super::contact::pair_ranges;
 use super::{
-    Books, ContactHistory, Declare, Effect, Forces, MaterialParam, PairForce, StepContext,
+    Books, ContactHistory, Declare, Effect, Forces, MaterialParam, PairForce, Setting, StepContext,
     FORCE_GRAIN,
 };
 use crate::contact::{Contact, FeatureKey, FeatureKind};
 use crate::ledger::Ledger;
 use crate::material::MaterialPairs;
-use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -53,8 +52,8 @@ impl Declare for FrictionParams {
         must_be: "finite and non-negative",
         accepts: |mu| mu.is_finite() && mu >= 0.0,
     }];
-    fn build(&self, scene: &Scene) -> Option<Box<dyn Effect>> {
-        Some(Box::new(FrictionEffect::new(&scene.world)))
+    fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>> {
+        Some(Box::new(FrictionEffect::new(setting.world)))
     }
 }
 

@@ -1,7 +1,6 @@
 //! Gravity: F = m g on every particle.
 
-use super::{Books, Declare, Effect, Forces, StepContext};
-use crate::scene::Scene;
+use super::{Books, Declare, Effect, Forces, Setting, StepContext};
 use crate::world::World;
 use glam::DVec3;
 use serde::Deserialize;
@@ -27,7 +26,7 @@ impl Declare for GravityParams {
             false => Err("g must be finite".into()),
         }
     }
-    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+    fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         Some(Box::new(GravityEffect { g: self.g() }))
     }
 }

@@ -18,7 +18,7 @@ mod wall_motion;
 
 pub use contact::{ContactEffect, ContactParams, NormalLaw};
 pub use damping::{DampingEffect, DampingParams};
-pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, KINDS};
+pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, Setting, KINDS};
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
 pub use probes::{Plane, ProbesEffect, ProbesParams, Region};

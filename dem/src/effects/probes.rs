@@ -15,9 +15,8 @@
 //! run split across ranks measures the same bits as one process. A probe
 //! adds no force: it reads the state, at output steps only.
 
-use super::{Declare, Effect, Forces, StepContext};
+use super::{Declare, Effect, Forces, Setting, StepContext};
 use crate::ledger::ExactSum;
-use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use serde::Deserialize;
@@ -91,7 +90,7 @@ impl Declare for ProbesParams {
         }
         Ok(())
     }
-    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+    fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         Some(Box::new(ProbesEffect {
             params: self.clone(),
         }))

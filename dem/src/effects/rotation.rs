@@ -2,8 +2,7 @@
 //! it they only translate (the integrator leaves orientations alone, and
 //! the contact dashpot counts no inertia). It adds no force of its own.
 
-use super::{Declare, Effect};
-use crate::scene::Scene;
+use super::{Declare, Effect, Setting};
 use serde::Deserialize;
 
 /// `rotation = {}`.
@@ -13,7 +12,7 @@ pub struct RotationParams {}
 
 impl Declare for RotationParams {
     const NAME: &'static str = "rotation";
-    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+    fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         None
     }
 }

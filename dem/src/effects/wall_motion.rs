@@ -18,10 +18,9 @@
 //! Only declared with moving obstacles, and refused without: a scene whose
 //! obstacles stand still runs none of this.
 
-use super::{Books, Declare, Effect, Forces, PairForce, StepContext};
+use super::{Books, Declare, Effect, Forces, PairForce, Setting, StepContext};
 use crate::body::Body;
 use crate::ledger::Ledger;
-use crate::scene::Scene;
 use crate::world::World;
 use glam::DVec3;
 use serde::Deserialize;
@@ -35,7 +34,7 @@ impl Declare for WallMotionParams {
     const NAME: &'static str = "wall_motion";
     /// Walls push through contacts.
     const NEEDS: &'static [&'static str] = &["contact"];
-    fn build(&self, _scene: &Scene) -> Option<Box<dyn Effect>> {
+    fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         Some(Box::new(WallMotionEffect::default()))
     }
 }
