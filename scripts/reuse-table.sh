@@ -42,8 +42,8 @@ def imbalance(v):
     return max(v) / m if m > 0 else 1.0
 print("| ranks | partitioner | moved, reused | moved, from scratch | reused / scratch | "
       "largest repartitioning, reused / scratch | MB moved, reused / scratch | "
-      "pair imbalance, reused / scratch |")
-print("|---|---|---|---|---|---|---|---|")
+      "pair imbalance, reused / scratch | work-weighted pair imbalance, reused / scratch |")
+print("|---|---|---|---|---|---|---|---|---|")
 names = sorted({os.path.basename(f).rsplit("-", 2)[0] for f in glob.glob(os.path.join(tmp, "*.jsonl"))})
 for ranks in (2, 4):
     for p in names:
@@ -54,14 +54,24 @@ for ranks in (2, 4):
         mb = {m: sum(sum(l["per_rank"]["migrated_bytes"]) for l in r[1:]) / 1e6 for m, r in runs.items()}
         pairs = {m: sum(imbalance(l["per_rank"]["triangle_pairs"]) for l in r[1:]) / (len(r) - 1)
                  for m, r in runs.items()}
+        # What the imbalance costs in time: the slowest rank's work summed over
+        # the intervals against the mean's, so an interval weighs its work.
+        weighted = {m: sum(max(l["per_rank"]["triangle_pairs"]) for l in r[1:]) /
+                    max(1e-300, sum(sum(l["per_rank"]["triangle_pairs"]) / len(l["per_rank"]["triangle_pairs"])
+                                    for l in r[1:]))
+                    for m, r in runs.items()}
         k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i])
         a, b = sum(moved["reuse"]), sum(moved["fresh"])
-        print("| %d | %s | %d | %d | %.2f | %d / %d | %.2f / %.2f | %.3f / %.3f |" % (
+        print("| %d | %s | %d | %d | %.2f | %d / %d | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
             ranks, p, a, b, a / b if b else 1.0, moved["reuse"][k], moved["fresh"][k],
-            mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"]))
+            mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"],
+            weighted["reuse"], weighted["fresh"]))
 print()
 print("Moved: bodies that changed rank over all repartitionings after the first. Largest "
       "repartitioning: the one that moved most from scratch, and what the reusing run moved at "
       "the same step. Pair imbalance: max/mean over ranks of the triangle pairs each checked, "
-      "averaged over the 100-step intervals (the work the partition balances, counted).")
+      "averaged over the 100-step intervals (the work the partition balances, counted); "
+      "work-weighted: the most any rank checked, summed over the intervals, over the mean's sum, "
+      "so that an interval counts by its work, as it does in the run's time (the collapse's "
+      "first intervals have few contacts, all on one side of a cut).")
 PY
