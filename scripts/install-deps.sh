@@ -12,6 +12,8 @@ packages=(
   libclang-dev            # bindgen (zoltan-sys, mpi-sys, hdf5-sys)
   pkg-config
   cmake                   # the metis crate builds its vendored METIS with cmake
+  python3-numpy           # the validation scripts' fits (scripts/validate-*.sh)
+  python3-h5py            # and their reading of run.h5
 )
 if [[ "${1:-}" == "--slurm" ]]; then
   packages+=(slurm-wlm munge)
