@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages tridem builds against, only those missing.
 # Idempotent: when everything is present it says so and changes nothing.
-# Usage: scripts/install-deps.sh [--slurm]
+# Usage: scripts/install-deps.sh [--slurm] [--render]
 set -euo pipefail
 
 packages=(
@@ -15,9 +15,14 @@ packages=(
   python3-numpy           # the validation scripts' fits (scripts/validate-*.sh)
   python3-h5py            # and their reading of run.h5
 )
-if [[ "${1:-}" == "--slurm" ]]; then
-  packages+=(slurm-wlm munge)
-fi
+for flag in "$@"; do
+  case "$flag" in
+    --slurm) packages+=(slurm-wlm munge) ;;
+    # ParaView's pvbatch, with which the tests read run.xmf as ParaView does.
+    --render) packages+=(paraview python3-paraview) ;;
+    *) echo "install-deps: unknown option $flag (--slurm, --render)" >&2; exit 2 ;;
+  esac
+done
 
 missing=()
 for p in "${packages[@]}"; do

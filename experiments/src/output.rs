@@ -21,7 +21,8 @@
 //! - `/steps/<k>/contact_forces/`: per contact (C) its `points`, `forces` (on the first
 //!   body; the second takes the opposite), `normal_forces`, `tangential_forces` (C×3),
 //!   `normal_force_magnitudes`, `overlaps`, `slides` (C), `bodies` (C×2); and the contact
-//!   network's `line_points` (2C×3) and `lines` (C×2).
+//!   network's `line_points` (2C×3) and `lines` (C×2); `point_index` (C), 0..C, the
+//!   contact points' connectivity.
 //! - `/steps/<k>/surface/points` (V×3): every body's mesh vertices where the body stands.
 //!
 //! The XDMF file `DIR/run.xmf` holds four temporal collections, which ParaView
@@ -317,13 +318,14 @@ impl Output {
         Ok(out)
     }
 
-    /// `/bodies/{material, mass, obstacle}` per body and `/materials` (an
+    /// `/bodies/{material, mass, obstacle, index}` per body and `/materials` (an
     /// attribute per material: its name, with its index as value): what
     /// never changes, written once.
     fn write_bodies(&self) -> CliResult {
         let layout = &self.layout;
         let g = self.file.create_group("bodies").map_err(h5err)?;
         let material: Vec<u32> = layout.per_body(|r| r.material as u32);
+        let bodies = material.len() as u32;
         let obstacle: Vec<u8> = layout.per_body(|r| u8::from(r.fixed.is_some()));
         let mass: Vec<f64> = layout.per_body(|r| if r.fixed.is_some() { 0.0 } else { r.mass });
         g.new_dataset_builder()
@@ -337,6 +339,13 @@ impl Output {
         g.new_dataset_builder()
             .with_data(&Array1::from(obstacle))
             .create("obstacle")
+            .map_err(h5err)?;
+        // The particles grid's connectivity (a vertex per body): XDMF 3
+        // readers draw no cell of a point set without it.
+        let index: Vec<u32> = (0..bodies).collect();
+        g.new_dataset_builder()
+            .with_data(&Array1::from(index))
+            .create("index")
             .map_err(h5err)?;
         let m = self.file.create_group("materials").map_err(h5err)?;
         for (i, name) in layout.materials.iter().enumerate() {
@@ -697,10 +706,7 @@ impl Output {
     /// One point per body at its centre of mass.
     fn xdmf_particles(&self, x: &mut String, s: &StepIndex) {
         let (n, k) = (s.bodies, s.k);
-        let _ = writeln!(
-            x,
-            r#"<Topology TopologyType="Polyvertex" NumberOfElements="{n}"/>"#
-        );
+        point_set(x, n, "bodies/index");
         geometry(x, n, &format!("steps/{k}/positions"));
         let step = |what: &str| format!("steps/{k}/{what}");
         attribute(x, "material", "Node", &[n], "UInt", 4, "bodies/material");
@@ -765,12 +771,19 @@ fn xdmf_contact_lines(x: &mut String, s: &StepIndex) {
 fn xdmf_contact_points(x: &mut String, s: &StepIndex) {
     let (nc, k) = (s.contacts, s.k);
     let c = |what: &str| format!("steps/{k}/contact_forces/{what}");
-    let _ = writeln!(
-        x,
-        r#"<Topology TopologyType="Polyvertex" NumberOfElements="{nc}"/>"#
-    );
+    point_set(x, nc, &c("point_index"));
     geometry(x, nc, &c("points"));
     attribute(x, "force", "Node", &[nc, 3], "Float", 8, &c("forces"));
+}
+
+/// A topology of `n` unconnected points, one vertex each, numbered by the
+/// dataset `index` (0..n): both XDMF readers of ParaView (2 and 3) draw it.
+fn point_set(x: &mut String, n: usize, index: &str) {
+    let _ = writeln!(
+        x,
+        r#"<Topology TopologyType="Polyvertex" NodesPerElement="1" NumberOfElements="{n}">{}</Topology>"#,
+        item(&[n], "UInt", 4, index)
+    );
 }
 
 /// An HDF5 data item of `run.h5`.
@@ -892,6 +905,11 @@ fn write_contacts(g: &hdf5::Group, frame: &Frame, obstacle: &[bool]) -> CliResul
         .new_dataset_builder()
         .with_data(&lines)
         .create("lines")
+        .map_err(h5err)?;
+    group
+        .new_dataset_builder()
+        .with_data(&Array1::from_iter(0..nc as u32))
+        .create("point_index")
         .map_err(h5err)?;
     for (name, data) in [
         ("points", &points),
