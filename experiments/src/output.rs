@@ -277,6 +277,21 @@ fn h5err(e: hdf5::Error) -> CliError {
     CliError::runtime(format!("HDF5: {e}"))
 }
 
+/// Writes `data` as the dataset `name` of `group`.
+fn put<'d, A, T, D>(group: &hdf5::Group, name: &str, data: A) -> CliResult
+where
+    A: Into<ndarray::ArrayView<'d, T, D>>,
+    T: hdf5::H5Type + 'd,
+    D: ndarray::Dimension + 'd,
+{
+    group
+        .new_dataset_builder()
+        .with_data(data)
+        .create(name)
+        .map_err(h5err)?;
+    Ok(())
+}
+
 impl Output {
     /// The output of a run of `layout` (the bodies' states come with each
     /// step).
@@ -290,14 +305,8 @@ impl Output {
             let g = shapes.create_group(&i.to_string()).map_err(h5err)?;
             let v = Array2::from_shape_fn((m.vertices.len(), 3), |(r, c)| m.vertices[r][c]);
             let t = Array2::from_shape_fn((m.triangles.len(), 3), |(r, c)| m.triangles[r][c]);
-            g.new_dataset_builder()
-                .with_data(&v)
-                .create("vertices")
-                .map_err(h5err)?;
-            g.new_dataset_builder()
-                .with_data(&t)
-                .create("triangles")
-                .map_err(h5err)?;
+            put(&g, "vertices", &v)?;
+            put(&g, "triangles", &t)?;
         }
         let names: Vec<hdf5::types::VarLenUnicode> = layout
             .fields
@@ -328,25 +337,13 @@ impl Output {
         let bodies = material.len() as u32;
         let obstacle: Vec<u8> = layout.per_body(|r| u8::from(r.fixed.is_some()));
         let mass: Vec<f64> = layout.per_body(|r| if r.fixed.is_some() { 0.0 } else { r.mass });
-        g.new_dataset_builder()
-            .with_data(&Array1::from(material))
-            .create("material")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&Array1::from(mass))
-            .create("mass")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&Array1::from(obstacle))
-            .create("obstacle")
-            .map_err(h5err)?;
+        put(&g, "material", &Array1::from(material))?;
+        put(&g, "mass", &Array1::from(mass))?;
+        put(&g, "obstacle", &Array1::from(obstacle))?;
         // The particles grid's connectivity (a vertex per body): XDMF 3
         // readers draw no cell of a point set without it.
         let index: Vec<u32> = (0..bodies).collect();
-        g.new_dataset_builder()
-            .with_data(&Array1::from(index))
-            .create("index")
-            .map_err(h5err)?;
+        put(&g, "index", &Array1::from(index))?;
         let m = self.file.create_group("materials").map_err(h5err)?;
         for (i, name) in layout.materials.iter().enumerate() {
             m.new_attr::<u32>()
@@ -392,18 +389,9 @@ impl Output {
         }
         let g = self.file.create_group("surface").map_err(h5err)?;
         let t = Array2::from_shape_fn((triangles.len(), 3), |(r, c)| triangles[r][c]);
-        g.new_dataset_builder()
-            .with_data(&t)
-            .create("triangles")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&Array1::from(body))
-            .create("body")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&Array1::from(material))
-            .create("material")
-            .map_err(h5err)?;
+        put(&g, "triangles", &t)?;
+        put(&g, "body", &Array1::from(body))?;
+        put(&g, "material", &Array1::from(material))?;
         Ok(())
     }
 
@@ -524,27 +512,12 @@ impl Output {
             .map_err(h5err)?;
         let vec3 =
             |f: &dyn Fn(usize) -> glam::DVec3| Array2::from_shape_fn((n, 3), |(r, c)| f(r)[c]);
-        g.new_dataset_builder()
-            .with_data(&vec3(&|i| b[i].x))
-            .create("positions")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&vec3(&|i| b[i].v))
-            .create("velocities")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&vec3(&|i| b[i].l))
-            .create("angular_momenta")
-            .map_err(h5err)?;
+        put(&g, "positions", &vec3(&|i| b[i].x))?;
+        put(&g, "velocities", &vec3(&|i| b[i].v))?;
+        put(&g, "angular_momenta", &vec3(&|i| b[i].l))?;
         let q = Array2::from_shape_fn((n, 4), |(r, c)| b[r].q.to_array()[c]);
-        g.new_dataset_builder()
-            .with_data(&q)
-            .create("orientations")
-            .map_err(h5err)?;
-        g.new_dataset_builder()
-            .with_data(&Array1::from(frame.contact_counts()))
-            .create("contacts")
-            .map_err(h5err)?;
+        put(&g, "orientations", &q)?;
+        put(&g, "contacts", &Array1::from(frame.contact_counts()))?;
         g.new_attr::<f64>()
             .create("time")
             .and_then(|a| a.write_scalar(&frame.time))
@@ -594,19 +567,13 @@ impl Output {
             translation[i] = 0.5 * mass * s.v.length_squared();
             rotation[i] = 0.5 * s.l.dot(w);
         }
-        g.new_dataset_builder()
-            .with_data(&omega)
-            .create("angular_velocities")
-            .map_err(h5err)?;
+        put(g, "angular_velocities", &omega)?;
         for (name, v) in [
             ("speeds", speed),
             ("kinetic_translation", translation),
             ("kinetic_rotation", rotation),
         ] {
-            g.new_dataset_builder()
-                .with_data(&Array1::from(v))
-                .create(name)
-                .map_err(h5err)?;
+            put(g, name, &Array1::from(v))?;
         }
         Ok(())
     }
@@ -884,33 +851,23 @@ fn write_contacts(g: &hdf5::Group, frame: &Frame, obstacle: &[bool]) -> CliResul
     });
     let bodies = Array2::from_shape_fn((nc, 2), |(r, k)| [c[r].a, c[r].b][k]);
     let lines = Array2::from_shape_fn((nc, 2), |(r, k)| (2 * r + k) as u32);
-    group
-        .new_dataset_builder()
-        .with_data(&Array1::from_iter(
-            c.iter().map(|x| x.normal_force.length()),
-        ))
-        .create("normal_force_magnitudes")
-        .map_err(h5err)?;
-    group
-        .new_dataset_builder()
-        .with_data(&Array1::from_iter(c.iter().map(|x| x.depth)))
-        .create("overlaps")
-        .map_err(h5err)?;
-    group
-        .new_dataset_builder()
-        .with_data(&Array1::from_iter(c.iter().map(|x| u8::from(x.slides))))
-        .create("slides")
-        .map_err(h5err)?;
-    group
-        .new_dataset_builder()
-        .with_data(&lines)
-        .create("lines")
-        .map_err(h5err)?;
-    group
-        .new_dataset_builder()
-        .with_data(&Array1::from_iter(0..nc as u32))
-        .create("point_index")
-        .map_err(h5err)?;
+    put(
+        &group,
+        "normal_force_magnitudes",
+        &Array1::from_iter(c.iter().map(|x| x.normal_force.length())),
+    )?;
+    put(
+        &group,
+        "overlaps",
+        &Array1::from_iter(c.iter().map(|x| x.depth)),
+    )?;
+    put(
+        &group,
+        "slides",
+        &Array1::from_iter(c.iter().map(|x| u8::from(x.slides))),
+    )?;
+    put(&group, "lines", &lines)?;
+    put(&group, "point_index", &Array1::from_iter(0..nc as u32))?;
     for (name, data) in [
         ("points", &points),
         ("forces", &f),
@@ -918,16 +875,8 @@ fn write_contacts(g: &hdf5::Group, frame: &Frame, obstacle: &[bool]) -> CliResul
         ("tangential_forces", &tangential),
         ("line_points", &ends),
     ] {
-        group
-            .new_dataset_builder()
-            .with_data(data)
-            .create(name)
-            .map_err(h5err)?;
+        put(&group, name, data)?;
     }
-    group
-        .new_dataset_builder()
-        .with_data(&bodies)
-        .create("bodies")
-        .map_err(h5err)?;
+    put(&group, "bodies", &bodies)?;
     Ok(nc)
 }
