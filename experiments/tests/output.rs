@@ -16,19 +16,7 @@ fn temp(name: &str) -> std::path::PathBuf {
 
 /// The hopper, 4,000 steps: grains on the funnel, in contact.
 fn hopper_run(name: &str) -> std::path::PathBuf {
-    let dir = temp(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    let (code, _, err) = tridem(&[
-        "run",
-        &scene("hopper.toml"),
-        "--steps",
-        "4000",
-        "--output",
-        dir.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    dir
+    common::hopper_run_into(temp(name))
 }
 
 fn vec3(a: &Array2<f64>, i: usize) -> DVec3 {

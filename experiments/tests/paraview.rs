@@ -8,7 +8,7 @@
 //! (T)"), which draws no cell of a point set without its connectivity.
 mod common;
 
-use common::{scene, tridem};
+use common::hopper_run_into;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -108,22 +108,6 @@ fn grid(xmf: &str, name: &str, k: usize) -> (usize, String, Vec<(String, String)
     (elements, geometry, attributes)
 }
 
-fn hopper_run() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("tridem-paraview-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let (code, _, err) = tridem(&[
-        "run",
-        &scene("hopper.toml"),
-        "--steps",
-        "4000",
-        "--output",
-        dir.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    dir
-}
-
 fn read_in_paraview(dir: &Path) -> Value {
     let script = dir.join("read.py");
     std::fs::write(&script, READ).unwrap();
@@ -165,7 +149,9 @@ fn same(got: &[f64], want: &[f64], what: &str) {
 
 #[test]
 fn paraview_reads_every_grid_and_attribute_of_run_xmf() {
-    let dir = hopper_run();
+    let dir = hopper_run_into(
+        std::env::temp_dir().join(format!("tridem-paraview-{}", std::process::id())),
+    );
     let seen = read_in_paraview(&dir);
     let xmf = std::fs::read_to_string(dir.join("run.xmf")).unwrap();
     let file = hdf5::File::open(dir.join("run.h5")).unwrap();

@@ -33,3 +33,20 @@ pub fn tridem_with_input(args: &[&str], stdin: &str) -> (i32, String, String) {
 pub fn scene(name: &str) -> String {
     format!("{}/../scenes/{name}", env!("CARGO_MANIFEST_DIR"))
 }
+
+/// The hopper run 4,000 steps into `dir` (emptied first): grains on the
+/// funnel, in contact, with every output field.
+pub fn hopper_run_into(dir: std::path::PathBuf) -> std::path::PathBuf {
+    let _ = std::fs::remove_dir_all(&dir);
+    let (code, _, err) = tridem(&[
+        "run",
+        &scene("hopper.toml"),
+        "--steps",
+        "4000",
+        "--output",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    dir
+}
