@@ -43,6 +43,12 @@ impl Body {
         self.drive.as_ref().is_none_or(|d| d.present())
     }
 
+    /// Whether every state variable (position, orientation, velocity,
+    /// angular momentum) is finite.
+    pub fn is_finite(&self) -> bool {
+        self.x.is_finite() && self.q.is_finite() && self.v.is_finite() && self.l.is_finite()
+    }
+
     /// A driven obstacle placed where its drive puts it at time `t`.
     pub fn follow_drive(&mut self, t: f64) {
         if let Some(d) = &mut self.drive {

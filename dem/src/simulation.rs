@@ -39,6 +39,28 @@ pub struct Simulation {
     pub totals: StepStats,
     /// Where the steps so far spent their time.
     pub timings: SectionTimes,
+    /// Whether every body's state was finite at the end of the last step.
+    finite: bool,
+    /// See [`Simulation::deep_steps_in_a_row`].
+    deep_steps: u64,
+}
+
+/// A state gone non-finite: the step that made it, and its time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NonFinite {
+    pub step: u64,
+    pub time: f64,
+}
+
+impl std::fmt::Display for NonFinite {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "the simulation became non-finite at step {} (t = {:e} s): the time step is too \
+             large for this scene, or its input holds a non-finite value",
+            self.step, self.time
+        )
+    }
 }
 
 impl Simulation {
@@ -127,6 +149,8 @@ impl Simulation {
             },
             totals: StepStats::default(),
             timings: SectionTimes::default(),
+            finite: true,
+            deep_steps: 0,
         };
         sim.timings = section_times(&sim.effects);
         sim
@@ -185,18 +209,45 @@ impl Simulation {
         self.evaluate_forces();
         let start = Instant::now();
         let (force, torque) = self.forces.all();
-        self.world
+        // The step's state is checked where the kick touches it last.
+        self.finite = self
+            .world
             .bodies
             .par_iter_mut()
             .enumerate()
             .with_min_len(KICK_GRAIN)
-            .for_each(|(i, b)| {
+            .map(|(i, b)| {
                 half_kick(b, force[i], torque[i], h, rot);
-            });
+                b.is_finite()
+            })
+            .reduce(|| true, |a, b| a && b);
         self.timings.integration += seconds_since(start);
         self.world.time += h;
         self.world.step += 1;
         self.totals += self.ctx.stats;
+        self.deep_steps = match self.ctx.stats.detection.deep_contacts {
+            0 => 0,
+            _ => self.deep_steps + 1,
+        };
+    }
+
+    /// Checks the state the last step reached: an error when a body's state
+    /// is no longer finite (the step is too large for the scene, or the
+    /// input held a non-finite value).
+    pub fn check(&self) -> Result<(), NonFinite> {
+        match self.finite {
+            true => Ok(()),
+            false => Err(NonFinite {
+                step: self.world.step,
+                time: self.world.time,
+            }),
+        }
+    }
+
+    /// Steps in a row, up to the last, that found a contact deeper than the
+    /// halos (a contact that stays crossed is not holding its bodies apart).
+    pub fn deep_steps_in_a_row(&self) -> u64 {
+        self.deep_steps
     }
 
     /// Bodies were moved other than by [`Simulation::step`]: the next step

@@ -407,3 +407,38 @@ fn without_rotation_bodies_only_translate() {
         assert_eq!(b.q, q);
     }
 }
+
+/// The step that makes a state non-finite says so, with its step and time;
+/// the steps before it find nothing wrong.
+#[test]
+fn the_step_that_makes_the_state_non_finite_is_named() {
+    let s = scene(
+        r#"
+        [simulation]
+        dt = 1e-3
+        end_time = 1.0
+        [effects]
+        gravity = { g = [0.0, 0.0, -9.81] }
+        [[materials]]
+        name = "m"
+        density = 1000.0
+        [[particles]]
+        material = "m"
+        shape = { kind = "tetrahedron", radius = 0.01 }
+        placement = { kind = "lattice", count = [3, 1, 1], spacing = 0.1, origin = [0.0, 0.0, 1.0] }
+        "#,
+    );
+    let mut sim = Simulation::new(&s);
+    for _ in 0..10 {
+        sim.step();
+        assert_eq!(sim.check(), Ok(()), "step {}", sim.world.step);
+    }
+    // A velocity that overflows: the next drift carries it into the position.
+    sim.world.bodies[2].v.y = f64::MAX;
+    sim.world.bodies[2].v.y *= 2.0;
+    sim.forget_motion();
+    sim.step();
+    let e = sim.check().expect_err("an infinite position");
+    assert_eq!((e.step, e.time), (11, sim.world.time));
+    assert!(e.to_string().contains("non-finite at step 11"), "{e}");
+}

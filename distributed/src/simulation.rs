@@ -63,7 +63,9 @@ use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
-use dem::simulation::{build_effects, check_share, energy_books, frame_contacts, shape_radii};
+use dem::simulation::{
+    build_effects, check_share, energy_books, frame_contacts, shape_radii, NonFinite,
+};
 use glam::DVec3;
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -370,10 +372,7 @@ impl<'c> DistributedSimulation<'c> {
         let moved = self.kick_and_drift();
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let finite = self.local.owned.iter().all(|&i| {
-            let b = &self.local.world.bodies[i];
-            b.x.is_finite() && b.v.is_finite() && b.q.is_finite() && b.l.is_finite()
-        });
+        let finite = (self.local.owned.iter()).all(|&i| self.local.world.bodies[i].is_finite());
         let flags = [
             moved,
             f64::from(u8::from(stop)),
@@ -386,12 +385,11 @@ impl<'c> DistributedSimulation<'c> {
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
         let h = self.dt;
         if global[2] > 0.0 {
-            return fail(format!(
-                "the simulation became non-finite at step {} (t = {:e} s): the time step is \
-                 too large for this scene, or its input holds a non-finite value",
-                self.local.world.step + 1,
-                self.local.world.time + h
-            ));
+            let at = NonFinite {
+                step: self.local.world.step + 1,
+                time: self.local.world.time + h,
+            };
+            return fail(at.to_string());
         }
         self.deep_steps = if global[3] > 0.0 {
             self.deep_steps + 1

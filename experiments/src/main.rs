@@ -16,14 +16,12 @@ mod plot;
 mod plot_cmd;
 mod raster;
 mod render_cmd;
-mod run_cmd;
-mod run_mpi;
+mod run;
 mod run_summary;
 mod scaling_cmd;
 mod sections;
 mod stats;
-mod study_cmd;
-mod study_node;
+mod study;
 
 use clap::Parser;
 
@@ -53,13 +51,13 @@ fn main() -> ExitCode {
         cli::Command::Kernels(args) => kernels::run(&args),
         cli::Command::Partition(args) => partition_cmd::run(&args),
         cli::Command::Pingpong(args) => pingpong::run(&args),
-        cli::Command::Run(args) => run_cmd::run(&args),
+        cli::Command::Run(args) => run::run(&args),
         cli::Command::Scaling(args) => scaling_cmd::run(&args),
         cli::Command::PartitionPlot(args) => partition_cmd::plot(&args),
         cli::Command::Plot(args) => plot_cmd::run(&args),
         cli::Command::Chart(args) => plot_cmd::chart(&args),
         cli::Command::Render(args) => render_cmd::run(&args),
-        cli::Command::Study(args) => study_cmd::run(&args),
+        cli::Command::Study(args) => study::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -3,11 +3,11 @@
 //! (`DIR/runs/LABEL/`), whose final checkpoint gives the state compared
 //! with the study's reference run.
 
+use super::common::{finding, floor_between, noise_floor, write, Group, Ran, Spec, Stat};
 use crate::checkpoint_file;
 use crate::cli::{StudyArgs, StudyName};
 use crate::error::{CliError, CliResult};
 use crate::plot::{bars, labelled_points, BarSeries, Labelled, Look};
-use crate::study_cmd::{finding, floor_between, noise_floor, write, Group, Ran, Spec, Stat};
 use dem::distance::Schedule;
 use dem::effects::GravityParams;
 use dem::scene::Scene;
@@ -18,7 +18,7 @@ use std::path::Path;
 /// batch of a pair Newton did not certify) and only the failed pairs.
 const FALLBACKS: [(&str, &str); 2] = [("whole-batch", "false"), ("failed-pairs", "true")];
 
-pub(crate) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
+pub(super) fn specs(args: &StudyArgs) -> CliResult<Vec<Spec>> {
     let set = |v: &[String]| {
         v.iter()
             .flat_map(|o| ["--set".to_string(), o.clone()])
@@ -236,7 +236,7 @@ fn rows<'a>(
         .collect()
 }
 
-pub(crate) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResult {
+pub(super) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResult {
     let first = &groups[0];
     let rows = match args.name {
         // Each schedule against one thread of the same fallback: are the

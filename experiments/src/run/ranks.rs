@@ -6,11 +6,13 @@
 //! directory is made only once the run has started on every rank. A bad
 //! input ends every rank with one message between them.
 
+use super::checks::{misfit, refuse_overlaps_at_start, refuse_resume_without_output};
+use super::drive::{describe, run_steps, steps_to_run, Driven};
+use super::signals::stop_on_signals;
 use crate::checkpoint_file;
 use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Layout, Output};
-use crate::run_cmd::{describe, refuse_crossings, refuse_overlaps_at_start, DEEP_STEPS};
 use dem::checkpoint::CheckpointShare;
 use dem::frame::Frame;
 use dem::scene::{Deal, Scene};
@@ -21,7 +23,7 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use partition::comm::gather_v;
 use std::io::Write;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::path::Path;
 use std::time::Instant;
 
 /// Every rank's outcome agreed on (collective): `Ok` on every rank, or an
@@ -70,13 +72,13 @@ struct Writer {
     first: bool,
 }
 
-pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
+pub(crate) fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let me = comm.rank();
     // A batch system's time limit signals every rank; each stops after the
     // step under way, and all agree on it within that step. Handled from
     // the start, so that no signal finds a rank without its handler.
-    let stop = crate::run_cmd::stop_on_signals()?;
-    agree(comm, crate::run_cmd::refuse_resume_without_output(args))?;
+    let stop = stop_on_signals()?;
+    agree(comm, refuse_resume_without_output(args))?;
     agree(comm, refuse_metrics_over(args))?;
     let mut scene = agree(
         comm,
@@ -111,7 +113,7 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let particles = scene.census.particles();
     let resumed = agree(comm, read_checkpoint(args, share(comm), particles))?;
     let first = resumed.as_ref().map_or(0, |c| c.step);
-    let steps = agree(comm, crate::run_cmd::steps_to_run(args, &scene, first))?;
+    let steps = agree(comm, steps_to_run(args, &scene, first))?;
     let start_with = match &resumed {
         Some(c) => Start::Resume(c),
         None => Start::Fresh,
@@ -121,12 +123,11 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     let dist = agree(
         comm,
         dist.map_err(|e| match &args.resume {
-            Some(file) => crate::run_cmd::misfit(args, file, e),
+            Some(file) => misfit(args, file, e),
             None => CliError::runtime(e),
         }),
     )?;
     drop(resumed);
-    let mut dist = dist;
     if args.resume.is_none() && !scene.allow_deep_contacts {
         let refused = refuse_start(&scene, &dist);
         agree(comm, refused)?;
@@ -147,37 +148,18 @@ pub fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
     if me == 0 {
         announce(&told, &settings, comm.size(), threads);
     }
-    let mut totals = StepMetrics::default();
     let start = Instant::now();
-    let ended = step_loop(
+    let mut run = Ranks {
         comm,
         args,
-        &scene,
-        &mut dist,
-        steps,
-        &mut writer,
-        &mut totals,
-        &stop,
-    )?;
-    if let Some(s) = ended {
-        let resume = match writer.as_ref().and_then(|w| w.checkpoint.as_ref()) {
-            Some(c) => format!("its state is in {}: go on with --resume", c.display()),
-            None => "no checkpoint without --output".into(),
-        };
-        let e = CliError::runtime(format!(
-            "stopped by a signal after {s} of {steps} steps, at step {} (t = {:.6e} s); {resume}",
-            dist.step_number(),
-            dist.time()
-        ));
-        return Err(on_every_rank(comm, e));
-    }
-    if args.output.is_some() && steps > 0 && !dist.step_number().is_multiple_of(scene.output_every)
-    {
-        let written = write_gathered(&dist, writer.as_mut(), false, true);
-        agree(comm, written)?;
-    }
+        dist,
+        writer,
+        totals: StepMetrics::default(),
+        interval: StepMetrics::default(),
+    };
+    run_steps(&mut run, args, &scene, steps, &stop)?;
     let secs = start.elapsed().as_secs_f64();
-    summary(comm, args, &dist, &totals, steps, secs);
+    summary(comm, args, &run.dist, &run.totals, steps, secs);
     Ok(())
 }
 
@@ -270,85 +252,77 @@ fn announce(told: &str, settings: &Settings, ranks: i32, threads: usize) {
     );
 }
 
-/// The steps on every rank, with their metrics, output and progress bar
-/// (rank 0's): `Some(s)` when a signal stopped the run after step `s`.
-#[allow(clippy::too_many_arguments)]
-fn step_loop(
-    comm: &SimpleCommunicator,
-    args: &RunArgs,
-    scene: &Scene,
-    dist: &mut DistributedSimulation,
-    steps: u64,
-    writer: &mut Option<Writer>,
-    totals: &mut StepMetrics,
-    stop: &AtomicBool,
-) -> CliResult<Option<u64>> {
-    let bar = crate::run_cmd::progress_bar(steps, args.quiet || comm.rank() != 0);
-    let mut interval = StepMetrics::default();
-    for s in 1..=steps {
-        // Every rank reaches the same outcome: the step's failures are
-        // all-reduced within it.
-        let stopping = match dist.step(stop.load(Ordering::Relaxed)) {
-            Ok(stopping) => stopping,
-            Err(e) => {
-                bar.abandon();
-                return Err(on_every_rank(comm, CliError::runtime(e)));
-            }
-        };
-        if dist.deep_steps_in_a_row() >= DEEP_STEPS && !scene.allow_deep_contacts {
-            bar.abandon();
-            let crossed = dist.crossed_pairs();
-            return Err(agree(comm, lasting_crossings(scene, dist, crossed)).unwrap_err());
-        }
-        totals.accumulate(dist.metrics());
-        interval.extend_interval(dist.metrics());
-        if args.metrics.is_some() && (s % args.metrics_every == 0 || s == steps) {
-            let written = write_metrics(comm, &std::mem::take(&mut interval), writer.as_mut());
-            agree(comm, written)?;
-        }
-        if dist.step_number().is_multiple_of(scene.output_every) || stopping {
-            let written = write_gathered(dist, writer.as_mut(), true, true);
-            agree(comm, written)?;
-        }
-        if s % 16 == 0 || s == steps {
-            bar.set_position(s);
-        }
-        if stopping {
-            bar.abandon();
-            return Ok(Some(s));
-        }
-    }
-    bar.finish_and_clear();
-    Ok(None)
+/// This rank's part of the run, driven by the step loop: each method is
+/// collective, and ends every rank with the same outcome.
+struct Ranks<'a> {
+    comm: &'a SimpleCommunicator,
+    args: &'a RunArgs,
+    dist: DistributedSimulation<'a>,
+    writer: Option<Writer>,
+    /// The run's metrics so far, and those of the interval not yet written.
+    totals: StepMetrics,
+    interval: StepMetrics,
 }
 
-/// Contacts deeper than the halos for DEEP_STEPS steps in a row stop the
-/// run, naming the deepest pair (rank 0 has them; the others an error that
-/// rank 0 reports).
-fn lasting_crossings(
-    scene: &Scene,
-    dist: &DistributedSimulation,
-    crossed: Option<Vec<(u32, u32, f64)>>,
-) -> CliResult {
-    let when = format!(
-        "for {DEEP_STEPS} steps in a row (step {}, t = {:e} s); the run stops",
-        dist.step_number(),
-        dist.time()
-    );
-    let Some(crossed) = crossed else {
-        return Err(CliError::reported_elsewhere(1));
-    };
-    let crossed: Vec<(usize, usize, f64)> = crossed
-        .into_iter()
-        .map(|(a, b, d)| (a as usize, b as usize, d))
-        .collect();
-    match refuse_crossings(scene, &crossed, &when) {
-        Err(e) => Err(CliError::runtime(e.to_string())),
-        // Deep in the step before last, apart since.
-        Ok(()) => Err(CliError::runtime(format!(
-            "contacts stayed deeper than the halos {when}; \
-             simulation.allow_deep_contacts = true lets the run go on"
-        ))),
+impl Driven for Ranks<'_> {
+    /// The step's failures are all-reduced within it: every rank has the
+    /// same outcome.
+    fn step(&mut self, stop: bool) -> CliResult<bool> {
+        let stepped = self.dist.step(stop).map_err(CliError::runtime);
+        stepped.map_err(|e| on_every_rank(self.comm, e))
+    }
+
+    fn step_number(&self) -> u64 {
+        self.dist.step_number()
+    }
+
+    fn time(&self) -> f64 {
+        self.dist.time()
+    }
+
+    fn deep_steps_in_a_row(&self) -> u64 {
+        self.dist.deep_steps_in_a_row()
+    }
+
+    fn crossed_pairs(&self) -> Option<Vec<(usize, usize, f64)>> {
+        let by_id = |(a, b, d): (u32, u32, f64)| (a as usize, b as usize, d);
+        (self.dist.crossed_pairs()).map(|c| c.into_iter().map(by_id).collect())
+    }
+
+    fn write(&mut self, output: bool, checkpoint: bool) -> CliResult {
+        if self.args.output.is_none() {
+            return Ok(());
+        }
+        let written = write_gathered(&self.dist, self.writer.as_mut(), output, checkpoint);
+        agree(self.comm, written)
+    }
+
+    fn checkpoint_path(&self) -> Option<&Path> {
+        self.writer.as_ref().and_then(|w| w.checkpoint.as_deref())
+    }
+
+    /// The metrics: summed for the summary, and written every
+    /// `--metrics-every` steps.
+    fn after_step(&mut self, s: u64, last: bool) -> CliResult {
+        self.totals.accumulate(self.dist.metrics());
+        self.interval.extend_interval(self.dist.metrics());
+        if self.args.metrics.is_some() && (s.is_multiple_of(self.args.metrics_every) || last) {
+            let interval = std::mem::take(&mut self.interval);
+            let written = write_metrics(self.comm, &interval, self.writer.as_mut());
+            agree(self.comm, written)?;
+        }
+        Ok(())
+    }
+
+    fn together(&self, e: CliError) -> CliError {
+        match agree(self.comm, Err::<(), _>(e)) {
+            Err(e) => e,
+            Ok(()) => unreachable!("an error on every rank"),
+        }
+    }
+
+    fn shows_progress(&self) -> bool {
+        self.comm.rank() == 0
     }
 }
 

@@ -1,122 +1,14 @@
-//! `tridem study NAME`: questions a DEM user asks before spending an
-//! allocation, answered on real distributed runs of a scene. Each study
-//! starts its runs under mpirun (`$MPIRUN`, default `mpirun`, with
-//! `$MPIRUN_ARGS`, default `--oversubscribe`; `MPIRUN=srun` inside a SLURM
-//! allocation, with `--mpi=pmix` unless `$TRIDEM_SRUN_MPI` says), keeps every run's metrics
-//! (`DIR/runs/LABEL-rN.jsonl`), writes one summary CSV and its figures (SVG
-//! and PNG), and prints a short table.
-//!
-//! Every setting runs `--repeat` times, the settings taken in turn (ABCABC:
-//! a drift of the machine spreads over all of them); the tables give the
-//! median and the least and most, the figures error bars. Each timing study
-//! runs its first setting twice under two labels: the difference between the
-//! two is its *noise floor*, and a difference between settings inside it is
-//! reported as none.
+//! The studies of distributed runs: their settings, summary CSV, figures,
+//! table and, for the repartition frequency, the cost model.
 
+use super::common::{finding, noise_floor, seconds_per_step, write, Group, Ran, Spec};
 use crate::cli::{StudyArgs, StudyName};
-use crate::error::{create_output_dir, CliError, CliResult};
-use crate::plot::{bars, lines, Bar, BarSeries, Look, Series};
+use crate::error::{CliError, CliResult};
+use crate::plot::{bars, lines, BarSeries, Look, Series};
 use distributed::Exchange;
 use serde_json::Value;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::Instant;
-
-/// One setting of a study.
-#[derive(Debug, Clone)]
-pub(crate) struct Spec {
-    pub label: String,
-    /// 1: a run on one node, started directly (no launcher).
-    pub ranks: usize,
-    pub threads: usize,
-    pub args: Vec<String>,
-    /// The setting the study varies, as a number for plots (K, ranks, threads).
-    pub x: f64,
-    /// The series it belongs to in the figures.
-    pub series: String,
-}
-
-pub(crate) struct Ran {
-    pub spec: Spec,
-    /// The run's JSON summary.
-    pub summary: Value,
-    /// Its metrics lines (distributed runs).
-    pub lines: Vec<Value>,
-}
-
-/// A setting's runs.
-pub(crate) struct Group {
-    pub spec: Spec,
-    pub runs: Vec<Ran>,
-}
-
-/// The median of a setting's runs, with the least and the most.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Stat {
-    pub median: f64,
-    pub lo: f64,
-    pub hi: f64,
-}
-
-impl Stat {
-    pub fn of(mut v: Vec<f64>) -> Stat {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        let median = match n {
-            0 => 0.0,
-            _ if n % 2 == 1 => v[n / 2],
-            _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
-        };
-        Stat {
-            median,
-            lo: v.first().copied().unwrap_or(0.0),
-            hi: v.last().copied().unwrap_or(0.0),
-        }
-    }
-
-    pub fn bar(&self, x: f64, scale: f64) -> Bar {
-        Bar {
-            x,
-            median: scale * self.median,
-            lo: scale * self.lo,
-            hi: scale * self.hi,
-        }
-    }
-}
-
-impl Group {
-    pub fn stat(&self, value: impl Fn(&Ran) -> f64) -> Stat {
-        Stat::of(self.runs.iter().map(value).collect())
-    }
-}
-
-/// The label of the setting that repeats the first one, for the noise floor.
-pub(crate) fn again(label: &str) -> String {
-    format!("{label}-again")
-}
-
-/// The noise floor of a timing study: how far apart two groups of the same
-/// setting measured (the relative difference of their medians), at least
-/// half the relative spread of either.
-pub(crate) fn noise_floor(groups: &[Group], value: impl Fn(&Ran) -> f64) -> Option<f64> {
-    let first = groups.first()?;
-    let twin = groups
-        .iter()
-        .find(|g| g.spec.label == again(&first.spec.label))?;
-    Some(floor_between(first, twin, value))
-}
-
-/// The noise floor of two settings that do the same work: the gap between
-/// their medians, or half the spread of either's runs, relative to the
-/// first's median, whichever is largest.
-pub(crate) fn floor_between(first: &Group, twin: &Group, value: impl Fn(&Ran) -> f64) -> f64 {
-    let (a, b) = (first.stat(&value), twin.stat(&value));
-    let rel = |s: &Stat| (s.hi - s.lo) / (2.0 * s.median);
-    ((a.median - b.median).abs() / a.median)
-        .max(rel(&a))
-        .max(rel(&b))
-}
+use std::path::Path;
 
 /// The summary CSV's columns after the run's label, ranks and setting:
 /// means over ranks of the per-step metrics.
@@ -134,144 +26,7 @@ const MEANS: [&str; 11] = [
     "contacts",
 ];
 
-pub fn run(args: &StudyArgs) -> CliResult {
-    let dir = args
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(format!("out/study-{}", args.name.name())));
-    if let Some(r) = args
-        .ranks
-        .iter()
-        .find(|&&r| r < 2)
-        .filter(|_| args.name.distributed())
-    {
-        return Err(CliError::input(format!(
-            "--ranks {r}: a study compares distributed runs, of 2 ranks or more"
-        )));
-    }
-    if dir.join("summary.csv").exists() && !args.overwrite {
-        return Err(CliError::input(format!(
-            "{}: holds an earlier study; write to another directory or replace it with --overwrite",
-            dir.display()
-        )));
-    }
-    let scene = args.scene();
-    if !scene.exists() {
-        return Err(CliError::input(format!(
-            "{}: no such scene",
-            scene.display()
-        )));
-    }
-    let mut specs = if args.name.distributed() {
-        specs(args)
-    } else {
-        crate::study_node::specs(args)?
-    };
-    if args.name != StudyName::Accuracy {
-        // The first setting again, under another label: the noise floor.
-        let mut twin = specs[0].clone();
-        twin.label = again(&twin.label);
-        twin.series = "noise floor".into();
-        specs.push(twin);
-    }
-    create_output_dir(&dir.join("runs"))?;
-    let resume_from = settle(args, &dir)?;
-    let mut groups: Vec<Group> = specs
-        .iter()
-        .map(|s| Group {
-            spec: s.clone(),
-            runs: Vec::new(),
-        })
-        .collect();
-    let total = args.repeat as usize * specs.len();
-    for rep in 0..args.repeat as usize {
-        for (k, spec) in specs.iter().enumerate() {
-            let start = Instant::now();
-            let r = run_one(args, &dir, spec.clone(), rep, resume_from.as_deref())?;
-            eprintln!(
-                "[{}/{total}] {:<24} {:>7.2} s",
-                rep * specs.len() + k + 1,
-                r.spec.label,
-                start.elapsed().as_secs_f64()
-            );
-            groups[k].runs.push(r);
-        }
-    }
-    if !args.name.distributed() {
-        return crate::study_node::report(args, &dir, &groups);
-    }
-    write(&dir.join("summary.csv"), &summary_csv(&groups))?;
-    figures(args, &dir, &groups)?;
-    print!("{}", table(&groups));
-    if let Some(floor) = noise_floor(&groups, seconds_per_step) {
-        println!(
-            "noise floor: {:.1}% of the time per step (the same setting under two labels)",
-            100.0 * floor
-        );
-        println!("{}", finding(&groups, seconds_per_step, floor));
-    }
-    if args.name == StudyName::RepartitionFrequency {
-        let model = cost_model(args, &groups);
-        write(&dir.join("model.csv"), &model.csv)?;
-        println!("{}", model.verdict);
-    }
-    println!("data and figures in {}", dir.display());
-    Ok(())
-}
-
-/// What a timing study found, in a sentence: the fastest setting (by
-/// median), the settings within the noise floor of it (no difference), and
-/// how much slower the others are.
-pub(crate) fn finding(groups: &[Group], time: impl Fn(&Ran) -> f64, floor: f64) -> String {
-    let settings: Vec<(&Group, f64)> = groups
-        .iter()
-        .filter(|g| g.spec.series != "noise floor")
-        .map(|g| (g, g.stat(&time).median))
-        .collect();
-    let Some(&(best, t)) = settings.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
-        return String::new();
-    };
-    let (mut same, mut slower) = (Vec::new(), Vec::new());
-    for &(g, u) in &settings {
-        if std::ptr::eq(g, best) {
-            continue;
-        }
-        let gap = (u - t) / t;
-        if gap <= floor {
-            same.push(g.spec.label.clone());
-        } else {
-            slower.push(format!("{} +{:.0}%", g.spec.label, 100.0 * gap));
-        }
-    }
-    let list = |v: &[String]| {
-        if v.is_empty() {
-            "none".into()
-        } else {
-            v.join(", ")
-        }
-    };
-    format!(
-        "found: fastest {} ({:.3} ms per step, median of {} runs); no difference beyond the \
-         noise floor ({:.1}%): {}; slower: {}",
-        best.spec.label,
-        1e3 * t,
-        best.runs.len(),
-        100.0 * floor,
-        list(&same),
-        list(&slower)
-    )
-}
-
-pub(crate) fn seconds_per_step(r: &Ran) -> f64 {
-    r.summary["seconds_per_step"].as_f64().unwrap_or(0.0)
-}
-
-pub(crate) fn write(path: &Path, text: &str) -> CliResult {
-    std::fs::write(path, text)
-        .map_err(|e| CliError::runtime(format!("{}: cannot write: {e}", path.display())))
-}
-
-fn specs(args: &StudyArgs) -> Vec<Spec> {
+pub(super) fn specs(args: &StudyArgs) -> Vec<Spec> {
     let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
     let ranks = args.ranks[0];
     let threads = args.threads.first().copied().unwrap_or(1);
@@ -348,141 +103,6 @@ fn specs(args: &StudyArgs) -> Vec<Spec> {
             .collect(),
         StudyName::Scheduling | StudyName::Accuracy => unreachable!("runs on one node"),
     }
-}
-
-/// With --settle: runs the scene that many steps once, with brute force on
-/// every core, into DIR/settled, and returns the checkpoint every run of
-/// the study resumes from.
-fn settle(args: &StudyArgs, dir: &Path) -> CliResult<Option<PathBuf>> {
-    let steps = args.settle();
-    if steps == 0 {
-        return Ok(None);
-    }
-    let out = dir.join("settled");
-    let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
-    let started = Instant::now();
-    let done = Command::new(exe)
-        .arg("run")
-        .arg(args.scene())
-        .args(["--steps", &steps.to_string(), "--quiet", "--overwrite"])
-        .args(["--set", "kernel.method=brute", "--output"])
-        .arg(&out)
-        .output()
-        .map_err(|e| CliError::runtime(format!("cannot start the settling run: {e}")))?;
-    if !done.status.success() {
-        return Err(CliError::runtime(format!(
-            "the settling run ({steps} steps) failed ({}): {}",
-            done.status,
-            String::from_utf8_lossy(&done.stderr).trim()
-        )));
-    }
-    eprintln!(
-        "settled: {steps} steps in {:.1} s; every run resumes from {}",
-        started.elapsed().as_secs_f64(),
-        out.join("checkpoint.h5").display()
-    );
-    Ok(Some(out.join("checkpoint.h5")))
-}
-
-/// Runs one run of a study (under the launcher when distributed, with
-/// metrics; on one node directly, keeping its output for its final state)
-/// and reads its summary and metrics. With `start`, the run resumes from
-/// that checkpoint into a directory of its own, made afresh.
-fn run_one(
-    args: &StudyArgs,
-    dir: &Path,
-    spec: Spec,
-    rep: usize,
-    start: Option<&Path>,
-) -> CliResult<Ran> {
-    let metrics = dir
-        .join("runs")
-        .join(format!("{}-r{rep}.jsonl", spec.label));
-    let scene = args.scene();
-    let exe = std::env::current_exe().map_err(|e| CliError::runtime(e.to_string()))?;
-    let launcher = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
-    let own = dir.join("runs").join(&spec.label);
-    let mut command = if spec.ranks == 1 {
-        let mut c = Command::new(&exe);
-        c.arg("run").arg(&scene).arg("--output").arg(&own);
-        c
-    } else {
-        // SLURM's srun takes the task count as -n, needs no oversubscription,
-        // and starts Debian's Open MPI through PMIx ($TRIDEM_SRUN_MPI names
-        // another plugin).
-        let srun = launcher.ends_with("srun");
-        let extra = std::env::var("MPIRUN_ARGS").unwrap_or_else(|_| {
-            if srun {
-                let plugin = std::env::var("TRIDEM_SRUN_MPI").unwrap_or_else(|_| "pmix".into());
-                format!("--mpi={plugin}")
-            } else {
-                "--oversubscribe".into()
-            }
-        });
-        let mut c = Command::new(&launcher);
-        c.args(extra.split_whitespace())
-            .args([if srun { "-n" } else { "-np" }, &spec.ranks.to_string()])
-            .arg(&exe)
-            .arg("run")
-            .arg(&scene)
-            .args(["--metrics-every", &args.metrics_every.to_string()])
-            .arg("--metrics")
-            .arg(&metrics);
-        c
-    };
-    if let Some(from) = start {
-        // A resumed run appends to the output in its directory: each
-        // repeat starts from an empty one.
-        if own.exists() {
-            std::fs::remove_dir_all(&own)
-                .map_err(|e| CliError::runtime(format!("{}: {e}", own.display())))?;
-        }
-        if spec.ranks > 1 {
-            command.arg("--output").arg(&own);
-        }
-        command.arg("--resume").arg(from);
-    }
-    let out = command
-        .args(["--steps", &args.steps().to_string()])
-        .args(["--threads", &spec.threads.to_string()])
-        .args(["--quiet", "--json", "--overwrite"])
-        .args(&spec.args)
-        .output()
-        .map_err(|e| CliError::runtime(format!("cannot start {launcher}: {e}")))?;
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() {
-        return Err(CliError::runtime(format!(
-            "run {} failed ({}): {}",
-            spec.label,
-            out.status,
-            stderr.trim()
-        )));
-    }
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let summary: Value = stdout
-        .lines()
-        .rev()
-        .find_map(|l| serde_json::from_str(l).ok())
-        .ok_or_else(|| CliError::runtime(format!("run {}: no summary", spec.label)))?;
-    if spec.ranks == 1 {
-        return Ok(Ran {
-            spec,
-            summary,
-            lines: Vec::new(),
-        });
-    }
-    let text = std::fs::read_to_string(&metrics)
-        .map_err(|e| CliError::runtime(format!("{}: {e}", metrics.display())))?;
-    let lines = text
-        .lines()
-        .map(serde_json::from_str)
-        .collect::<Result<Vec<Value>, _>>()
-        .map_err(|e| CliError::runtime(format!("{}: {e}", metrics.display())))?;
-    Ok(Ran {
-        spec,
-        summary,
-        lines,
-    })
 }
 
 /// A per-step metric's mean over ranks in a run's summary.
@@ -924,62 +544,25 @@ fn cost_model(args: &StudyArgs, groups: &[Group]) -> Model {
     Model { csv, verdict }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A setting whose runs took `times` milliseconds per step.
-    fn group(label: &str, series: &str, times: &[f64]) -> Group {
-        let spec = Spec {
-            label: label.into(),
-            ranks: 2,
-            threads: 1,
-            args: Vec::new(),
-            x: 0.0,
-            series: series.into(),
-        };
-        let runs = times
-            .iter()
-            .map(|&t| Ran {
-                spec: spec.clone(),
-                summary: serde_json::json!({ "seconds_per_step": 1e-3 * t }),
-                lines: Vec::new(),
-            })
-            .collect();
-        Group { spec, runs }
+/// The distributed studies' report: the summary CSV, the figures, the
+/// table with the noise floor and the finding, and for the repartition
+/// frequency, the cost model.
+pub(super) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResult {
+    write(&dir.join("summary.csv"), &summary_csv(groups))?;
+    figures(args, dir, groups)?;
+    print!("{}", table(groups));
+    if let Some(floor) = noise_floor(groups, seconds_per_step) {
+        println!(
+            "noise floor: {:.1}% of the time per step (the same setting under two labels)",
+            100.0 * floor
+        );
+        println!("{}", finding(groups, seconds_per_step, floor));
     }
-
-    #[test]
-    fn the_floor_is_the_gap_between_twins_or_their_spread() {
-        // Medians 1.00 and 1.03 (3% apart); spreads 2% and 1% of the median.
-        let groups = [
-            group("a", "s", &[0.98, 1.0, 1.02]),
-            group("b", "s", &[2.0, 2.0, 2.0]),
-            group("a-again", "noise floor", &[1.02, 1.03, 1.04]),
-        ];
-        let floor = noise_floor(&groups, seconds_per_step).unwrap();
-        assert!((floor - 0.03).abs() < 1e-12, "{floor}");
-        // Wide spread dominates a small gap.
-        let groups = [
-            group("a", "s", &[0.5, 1.0, 1.5]),
-            group("a-again", "noise floor", &[1.0, 1.0, 1.0]),
-        ];
-        assert!((noise_floor(&groups, seconds_per_step).unwrap() - 0.5).abs() < 1e-12);
+    if args.name == StudyName::RepartitionFrequency {
+        let model = cost_model(args, groups);
+        write(&dir.join("model.csv"), &model.csv)?;
+        println!("{}", model.verdict);
     }
-
-    #[test]
-    fn a_finding_separates_settings_within_the_floor_from_slower_ones() {
-        let groups = [
-            group("a", "s", &[1.00, 1.00, 1.00]),
-            group("b", "s", &[1.02, 1.02, 1.02]),
-            group("c", "s", &[1.50, 1.50, 1.50]),
-            group("a-again", "noise floor", &[0.90, 0.90, 0.90]),
-        ];
-        let text = finding(&groups, seconds_per_step, 0.03);
-        assert!(text.starts_with("found: fastest a (1.000 ms"), "{text}");
-        assert!(text.contains("noise floor (3.0%): b;"), "{text}");
-        assert!(text.contains("slower: c +50%"), "{text}");
-        // The twin measures the floor; it is not a setting.
-        assert!(!text.contains("a-again"), "{text}");
-    }
+    println!("data and figures in {}", dir.display());
+    Ok(())
 }
