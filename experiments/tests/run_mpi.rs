@@ -141,7 +141,7 @@ fn the_hopper_on_any_split_is_one_process_to_the_bit() {
     // 10), on 2, 3 and 4 ranks in turn; the hybrid kernel recomputing
     // only the uncertified pairs, as the scene says.
     let mut splits = Vec::new();
-    let partitioners = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+    let partitioners = partition::Backend::ALL.map(|b| b.name());
     for (i, p) in partitioners.into_iter().enumerate() {
         for (j, every) in ["0", "1", "10"].into_iter().enumerate() {
             let ranks = 2 + (i + j) % 3;

@@ -257,10 +257,10 @@ fn partitioners_and_exchange_studies_write_their_data_and_figures() {
     let (dir, _) = study("partitioners", &["--repartition-every", "10"]);
     assert_eq!(
         rows(&dir).len(),
-        6,
+        partition::Backend::ALL.len() + 1,
         "every partitioner, and the first again"
     );
-    for p in ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"] {
+    for p in partition::Backend::ALL.map(|b| b.name()) {
         let m = metrics(&dir, p);
         assert_eq!(m.len(), 6, "{p}");
         assert_eq!(m[0]["sum"]["owned_bodies"], 1000.0, "{p}");

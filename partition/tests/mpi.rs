@@ -1,7 +1,10 @@
 //! Multi-rank tests of every backend through the mpirun harness.
 use mpi_harness::{example_binary, MpiRun, RunOutput};
 
-const BACKENDS: [&str; 5] = ["zoltan-rcb", "zoltan-rib", "zoltan-hsfc", "metis", "rcb"];
+/// Every backend, by the names the command line reads.
+fn backends() -> impl Iterator<Item = &'static str> {
+    partition::Backend::ALL.into_iter().map(|b| b.name())
+}
 
 fn run(
     backend: &str,
@@ -38,7 +41,7 @@ fn every_backend_on_1_to_4_ranks() {
     let id_sum: u64 = (0..n).sum();
     let id_sq: f64 = (0..n).map(|i| (i * i) as f64).sum();
     let weight: f64 = (0..n).map(|i| if i % 3 == 0 { 3.0 } else { 1.0 }).sum();
-    for backend in BACKENDS {
+    for backend in backends() {
         for ranks in [1, 2, 3, 4] {
             let r = run(backend, "uniform", n, halo, ranks, 0.0);
             let ctx = format!("{backend} on {ranks} ranks");
@@ -104,7 +107,7 @@ fn every_backend_on_1_to_4_ranks() {
 /// Clustered items: every item still placed once and ghosts complete.
 #[test]
 fn blobs_keep_items_and_ghosts() {
-    for backend in BACKENDS {
+    for backend in backends() {
         let r = run(backend, "blobs", 4000, 0.005, 3, 0.0);
         assert_eq!(sum::<usize>(&r, "local_items"), 4000, "{backend}");
         for rep in &r.reports {
