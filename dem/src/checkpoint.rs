@@ -95,11 +95,11 @@ impl Checkpoint {
 /// it streams by: the header, the body count, every body's state, every
 /// force then every torque, and per effect its name and row length followed
 /// by each part's length and numbers.
-pub struct Digest(crate::world::Fnv1a);
+pub struct Digest(crate::fingerprint::Fnv1a);
 
 impl Digest {
     pub fn new(time: f64, step: u64, dt: f64, fingerprint: u64) -> Digest {
-        let mut h = crate::world::Fnv1a::default();
+        let mut h = crate::fingerprint::Fnv1a::default();
         h.f64(time);
         h.u64(step);
         h.f64(dt);

@@ -169,7 +169,7 @@ impl Drive {
 
     /// Position and orientation at time `t`.
     pub fn pose(&self, t: f64) -> (DVec3, DQuat) {
-        let turn = crate::integrate::exp_map(self.angular_velocity.integral(t));
+        let turn = crate::exp_map::exp_map(self.angular_velocity.integral(t));
         (
             self.x0 + self.velocity.integral(t),
             (turn * self.q0).normalize(),

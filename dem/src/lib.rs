@@ -5,6 +5,7 @@
 //! - [`mesh`]: closed triangle meshes, their mass properties, generators and loaders.
 //! - [`scene`] -> [`world`] -> [`simulation`] (the step pipeline of [`effects`],
 //!   with [`contact`] detection and [`integrate`]) -> output (in the `tridem` binary).
+//! - [`exp_map`]: rotations by rotation vectors (the quaternion exponential).
 //! - [`ledger`]: energy books whose sums do not depend on the order of their terms.
 //! - [`checkpoint`]: a run's whole state, to stop it and resume it unchanged.
 //! - [`timing`]: where a run's time goes, by section of the step pipeline.
@@ -18,6 +19,8 @@ pub mod contact;
 pub mod distance;
 pub mod drive;
 pub mod effects;
+pub mod exp_map;
+mod fingerprint;
 pub mod frame;
 pub mod integrate;
 pub mod ledger;

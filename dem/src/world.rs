@@ -1,9 +1,9 @@
 //! The world: shapes, materials, bodies and time.
 
 use crate::body::Body;
+use crate::fingerprint::{hash_body, Fnv1a};
 use crate::material::Material;
 use crate::mesh::TriMesh;
-use crate::scene::census::hash_body;
 use glam::DVec3;
 
 /// Everything that is simulated. Shapes are meshes in body coordinates (centre
@@ -162,31 +162,6 @@ impl World {
             .filter(|b| !b.is_static())
             .map(|b| self.shapes[b.shape].triangles.len())
             .sum()
-    }
-}
-
-/// The 64-bit FNV-1a hash.
-pub(crate) struct Fnv1a(pub(crate) u64);
-
-impl Default for Fnv1a {
-    fn default() -> Self {
-        Fnv1a(0xcbf2_9ce4_8422_2325)
-    }
-}
-
-impl Fnv1a {
-    pub(crate) fn bytes(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.0 = (self.0 ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-
-    pub(crate) fn u64(&mut self, v: u64) {
-        self.bytes(&v.to_le_bytes());
-    }
-
-    pub(crate) fn f64(&mut self, v: f64) {
-        self.u64(v.to_bits());
     }
 }
 

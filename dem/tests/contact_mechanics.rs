@@ -4,7 +4,7 @@
 //! conservation laws. Each test states the property; the tolerances are those
 //! docs/dem.md lists for the contact model.
 use dem::effects::GravityParams;
-use dem::integrate::exp_map;
+use dem::exp_map::exp_map;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use glam::{DQuat, DVec3};

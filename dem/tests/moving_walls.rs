@@ -3,7 +3,7 @@
 //! and the work it does is booked, so that the energy books still balance.
 //! Rotation on, no global damping.
 use dem::body::{Drive, Profile};
-use dem::integrate::exp_map;
+use dem::exp_map::exp_map;
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use glam::{DQuat, DVec3};

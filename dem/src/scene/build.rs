@@ -388,7 +388,7 @@ fn orientation(
         }
     };
     Ok(match p.rotation {
-        Some(r) => crate::integrate::exp_map(DVec3::from_array(r)) * q,
+        Some(r) => crate::exp_map::exp_map(DVec3::from_array(r)) * q,
         None => q,
     })
 }
@@ -408,7 +408,7 @@ fn add_obstacle(
     let mat = material_index(ctx, span.clone(), world, &o.material)?;
     let mesh = make_shape(ctx, span.clone(), &o.shape)?;
     let q = o.rotation.map_or(DQuat::IDENTITY, |r| {
-        crate::integrate::exp_map(DVec3::from_array(r))
+        crate::exp_map::exp_map(DVec3::from_array(r))
     });
     world.shapes.push(mesh);
     let x = DVec3::from_array(o.position);

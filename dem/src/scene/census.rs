@@ -8,8 +8,8 @@
 //! output's layout, the stable step) reads the census instead, so that no
 //! rank keeps a list of every body.
 
-use crate::body::{Drive, Profile};
-use crate::world::Fnv1a;
+use crate::body::Drive;
+use crate::fingerprint::{hash_body, Fnv1a};
 use glam::{DMat3, DQuat, DVec3};
 use std::ops::Range;
 
@@ -118,47 +118,6 @@ impl Census {
             for _ in r.ids.clone() {
                 hash_body(h, r.shape, r.material, r.mass, r.fixed, r.drive.as_ref());
             }
-        }
-    }
-}
-
-/// What a body contributes to the fingerprint: its shape, material and mass,
-/// an obstacle's pose at time 0, and a moving obstacle's velocities.
-pub(crate) fn hash_body(
-    h: &mut Fnv1a,
-    shape: usize,
-    material: usize,
-    mass: f64,
-    fixed: Option<(DVec3, DQuat)>,
-    drive: Option<&Drive>,
-) {
-    h.u64(shape as u64);
-    h.u64(material as u64);
-    h.f64(mass);
-    if let Some((x, q)) = fixed {
-        x.to_array().into_iter().for_each(|c| h.f64(c));
-        q.to_array().into_iter().for_each(|c| h.f64(c));
-    }
-    if let Some(d) = drive {
-        // Constant velocities hash as their values alone; a table as its
-        // length and knots after them.
-        let profiles = [&d.velocity, &d.angular_velocity];
-        for p in profiles {
-            if let Profile::Constant(v) = p {
-                v.to_array().into_iter().for_each(|c| h.f64(c));
-            }
-        }
-        for p in profiles {
-            if let Profile::Table(knots) = p {
-                h.u64(knots.len() as u64);
-                for (t, v) in knots {
-                    h.f64(*t);
-                    v.to_array().into_iter().for_each(|c| h.f64(c));
-                }
-            }
-        }
-        if let Some(t) = d.removed_at {
-            h.f64(t);
         }
     }
 }
