@@ -5,7 +5,7 @@
 //! each in one line, as LAMMPS registers a fix; nothing else matches effects
 //! by name.
 
-use super::Effect;
+use super::{Effect, KINDS};
 use crate::distance::Options;
 use crate::material::Material;
 use crate::world::World;
@@ -204,22 +204,3 @@ pub fn kind_of(name: &str) -> &'static Kind {
         .find(|k| k.name == name)
         .expect("declared effects are registered")
 }
-
-use super::contact::ContactParams;
-use super::damping::DampingParams;
-use super::friction::FrictionParams;
-use super::gravity::GravityParams;
-use super::rotation::RotationParams;
-
-/// Every effect a scene can declare, in the order of the step pipeline
-/// (friction reads the normal forces the contact effect found; moving walls
-/// book the power of both).
-pub static KINDS: &[Kind] = &[
-    kind::<GravityParams>(),
-    kind::<ContactParams>(),
-    kind::<FrictionParams>(),
-    kind::<super::wall_motion::WallMotionParams>(),
-    kind::<DampingParams>(),
-    kind::<RotationParams>(),
-    kind::<super::probes::ProbesParams>(),
-];

@@ -3,22 +3,41 @@
 //! Only declared effects are constructed, so an undeclared effect costs
 //! nothing and cannot act. Each effect's file holds its parameters (what
 //! the scene writes), their checks, the material parameters it needs, and
-//! its force law; [`KINDS`] registers it in one line (see `declare.rs`). Each effect adds forces and torques; effects that
-//! need what another found (friction needs the contacts and their normal
-//! forces) read it from the [`StepContext`].
+//! its force law; one line of the `register!` list below declares the file
+//! and registers the effect in [`KINDS`] (see `declare.rs`). Each effect
+//! adds forces and torques; effects that need what another found (friction
+//! needs the contacts and their normal forces) read it from the
+//! [`StepContext`].
 
-mod contact;
-mod damping;
 mod declare;
-mod friction;
-mod gravity;
-mod probes;
-mod rotation;
-mod wall_motion;
+
+/// Declares each effect's file and registers its parameter type in
+/// [`KINDS`], in the order given: an effect is its file plus its line in
+/// the list below.
+macro_rules! register {
+    ($($file:ident :: $params:ident),* $(,)?) => {
+        $(mod $file;)*
+        /// Every effect a scene can declare, in the order of the step
+        /// pipeline.
+        pub static KINDS: &[Kind] = &[$(declare::kind::<$file::$params>()),*];
+    };
+}
+
+// The order of the pipeline: friction reads the normal forces the contact
+// effect found; moving walls book the power of both.
+register! {
+    gravity::GravityParams,
+    contact::ContactParams,
+    friction::FrictionParams,
+    wall_motion::WallMotionParams,
+    damping::DampingParams,
+    rotation::RotationParams,
+    probes::ProbesParams,
+}
 
 pub use contact::{ContactEffect, ContactParams, NormalLaw};
 pub use damping::{DampingEffect, DampingParams};
-pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, Setting, KINDS};
+pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, Setting};
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
 pub use probes::{Plane, ProbesEffect, ProbesParams, Region};
