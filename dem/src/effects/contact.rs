@@ -248,7 +248,7 @@ pub(crate) fn pair_mass(world: &World, contacts: &[Contact], rotation: bool) -> 
 
 impl Effect for ContactEffect {
     fn name(&self) -> &'static str {
-        "contact"
+        ContactParams::NAME
     }
 
     fn detects_contacts(&self) -> bool {

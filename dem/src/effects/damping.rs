@@ -42,7 +42,7 @@ pub struct DampingEffect {
 
 impl Effect for DampingEffect {
     fn name(&self) -> &'static str {
-        "damping"
+        DampingParams::NAME
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {

@@ -102,7 +102,7 @@ const TANGENTIAL_RATIO: f64 = 2.0 / 7.0;
 
 impl Effect for FrictionEffect {
     fn name(&self) -> &'static str {
-        "friction"
+        FrictionParams::NAME
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {

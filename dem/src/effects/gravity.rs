@@ -37,7 +37,7 @@ pub struct GravityEffect {
 
 impl Effect for GravityEffect {
     fn name(&self) -> &'static str {
-        "gravity"
+        GravityParams::NAME
     }
 
     fn apply(&mut self, world: &World, ctx: &mut StepContext, forces: &mut Forces) {

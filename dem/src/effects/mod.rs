@@ -321,6 +321,7 @@ pub trait ContactHistory {
 
 /// One effect of the step pipeline.
 pub trait Effect: Send {
+    /// The name of the effect's parameters ([`Declare::NAME`]).
     fn name(&self) -> &'static str;
     /// Adds the effect's forces: on `ctx.bodies`, and at `ctx.contacts`
     /// (through [`Forces::add_pair`], in contact order).
