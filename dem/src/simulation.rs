@@ -269,6 +269,13 @@ impl Simulation {
         energy_books(&self.world, &self.ctx, &self.effects).rounded()
     }
 
+    /// The present value of the measure `name` of an effect (a probe's
+    /// count, mass or momentum), if the pipeline has one of that name.
+    pub fn measure(&self, name: &str) -> Option<f64> {
+        let measures = self.energies().measures;
+        measures.into_iter().find(|(n, _)| n == name).map(|m| m.1)
+    }
+
     /// The present state as the output shows it.
     pub fn frame(&self) -> Frame {
         let world = &self.world;

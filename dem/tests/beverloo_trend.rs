@@ -81,9 +81,8 @@ fn silo(width: f64, open: f64) -> Scene {
 }
 
 fn measure(sim: &Simulation, name: &str) -> f64 {
-    let e = sim.energies();
-    let m = e.measures.iter().find(|(n, _)| n == name);
-    m.unwrap_or_else(|| panic!("no {name}: {:?}", e.measures)).1
+    sim.measure(name)
+        .unwrap_or_else(|| panic!("no measure {name}"))
 }
 
 /// The discharge rate (kg/s) through a slot `width` wide: the mass that

@@ -28,9 +28,8 @@ fn column(probes: &str) -> Scene {
 }
 
 fn measure(sim: &Simulation, name: &str) -> f64 {
-    let e = sim.energies();
-    let m = e.measures.iter().find(|(n, _)| n == name);
-    m.unwrap_or_else(|| panic!("no {name}: {:?}", e.measures)).1
+    sim.measure(name)
+        .unwrap_or_else(|| panic!("no measure {name}"))
 }
 
 /// A plane at z = 0 facing down counts the particles that fell past it, and
