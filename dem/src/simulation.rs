@@ -1,7 +1,7 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
-use crate::effects::{Effect, Forces, RotationParams, Setting, StepContext, StepStats};
+use crate::effects::{Effect, Forces, Setting, StepContext, StepStats};
 use crate::frame::{EnergyBooks, Frame, FrameContact};
 use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
@@ -135,7 +135,7 @@ impl Simulation {
         let mut sim = Simulation {
             world,
             dt: scene.dt,
-            rotation: scene.effects.has::<RotationParams>(),
+            rotation: scene.effects.rotate(),
             motion_unknown: false,
             shape_radius,
             effects,

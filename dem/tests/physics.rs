@@ -15,25 +15,32 @@ fn run(sim: &mut Simulation, steps: u64) {
     }
 }
 
-/// x(t) = x0 + v0 t + g t²/2: velocity Verlet is exact for constant force.
-#[test]
-fn free_fall_matches_the_parabola() {
-    let s = scene(
+/// Tetrahedra under gravity alone, placed (and set moving) by `placement`.
+fn falling(placement: &str) -> Scene {
+    scene(&format!(
         r#"
         [simulation]
         dt = 1e-3
         end_time = 1.0
         [effects]
-        gravity = { g = [0.0, 0.0, -9.81] }
+        gravity = {{ g = [0.0, 0.0, -9.81] }}
         [[materials]]
         name = "m"
         density = 1000.0
         [[particles]]
         material = "m"
-        shape = { kind = "tetrahedron", radius = 0.01 }
-        placement = { kind = "single", position = [0.1, -0.2, 3.0] }
-        velocity = [1.0, 0.5, 2.0]
-        "#,
+        shape = {{ kind = "tetrahedron", radius = 0.01 }}
+        {placement}
+        "#
+    ))
+}
+
+/// x(t) = x0 + v0 t + g t²/2: velocity Verlet is exact for constant force.
+#[test]
+fn free_fall_matches_the_parabola() {
+    let s = falling(
+        r#"placement = { kind = "single", position = [0.1, -0.2, 3.0] }
+        velocity = [1.0, 0.5, 2.0]"#,
     );
     let mut sim = Simulation::new(&s);
     let (x0, v0, g) = (
@@ -412,21 +419,8 @@ fn without_rotation_bodies_only_translate() {
 /// the steps before it find nothing wrong.
 #[test]
 fn the_step_that_makes_the_state_non_finite_is_named() {
-    let s = scene(
-        r#"
-        [simulation]
-        dt = 1e-3
-        end_time = 1.0
-        [effects]
-        gravity = { g = [0.0, 0.0, -9.81] }
-        [[materials]]
-        name = "m"
-        density = 1000.0
-        [[particles]]
-        material = "m"
-        shape = { kind = "tetrahedron", radius = 0.01 }
-        placement = { kind = "lattice", count = [3, 1, 1], spacing = 0.1, origin = [0.0, 0.0, 1.0] }
-        "#,
+    let s = falling(
+        r#"placement = { kind = "lattice", count = [3, 1, 1], spacing = 0.1, origin = [0.0, 0.0, 1.0] }"#,
     );
     let mut sim = Simulation::new(&s);
     for _ in 0..10 {

@@ -311,3 +311,48 @@ fn shares_of_a_scene_make_up_the_whole_scene() {
         assert_eq!(shapes, direct, "{file}");
     }
 }
+
+/// A drum's shell is an obstacle like any other; bad dimensions are refused
+/// with the key at fault.
+#[test]
+fn tubes_are_read_and_bad_ones_refused() {
+    let tube = |shape: &str| {
+        format!(
+            "{BASE}\n[[obstacles]]\nmaterial = \"m\"\nshape = {{ kind = \"tube\", {shape} }}\nposition = [0.0, 0.0, 0.0]\n"
+        )
+    };
+    let s = parse(&tube("inner_radius = 0.1, thickness = 0.01, length = 0.05")).unwrap();
+    let mesh = &s.world.shapes[s.world.bodies[1].shape];
+    assert_eq!(mesh.triangles.len(), 8 * 48, "48 sides by default");
+    // At the obstacle's table (line 22), or at the value itself (line 24)
+    // when it is no number at all.
+    let dims = "inner_radius = 0.1, thickness = 0.01";
+    for (bad, what, line) in [
+        (
+            "inner_radius = 0.0, thickness = 0.01, length = 0.05",
+            "shape.inner_radius",
+            22,
+        ),
+        (
+            "inner_radius = 0.1, thickness = -1.0, length = 0.05",
+            "shape.thickness",
+            22,
+        ),
+        (&format!("{dims}, length = 0.0"), "shape.length", 22),
+        (&format!("{dims}, length = nan"), "shape.length", 24),
+        (
+            &format!("{dims}, length = 0.05, segments = 2"),
+            "shape.segments",
+            22,
+        ),
+        (
+            &format!("{dims}, length = 0.05, segments = 1000000"),
+            "shape.segments",
+            22,
+        ),
+    ] {
+        let e = parse(&tube(bad)).unwrap_err();
+        assert!(e.cause.contains(what), "{bad}: {e}");
+        assert_eq!(e.line, line, "{bad}: {e}");
+    }
+}

@@ -55,9 +55,7 @@ use dem::body::Body;
 use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
 use dem::contact::{Bounds, Contact, Detector, Role, Share};
 use dem::distance::Options;
-use dem::effects::{
-    ContactParams, Effect, ForceTerm, Forces, RotationParams, StepContext, StepStats,
-};
+use dem::effects::{ContactParams, Effect, ForceTerm, Forces, StepContext, StepStats};
 use dem::frame::{EnergyBooks, Frame};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
@@ -227,7 +225,7 @@ impl<'c> DistributedSimulation<'c> {
             particles,
             fingerprint,
             dt: scene.dt,
-            rotation: scene.effects.has::<RotationParams>(),
+            rotation: scene.effects.rotate(),
             detects: effects.iter().any(|e| e.detects_contacts()),
             effects,
             features: world.shapes.iter().map(Features::of).collect(),

@@ -29,7 +29,6 @@
 //! an impact, as in the linear model whose restitution is exact; friction is
 //! told 0 then.
 
-use super::rotation::RotationParams;
 use super::{
     Books, Declare, Effect, Forces, MaterialParam, PairForce, Setting, StepContext, FORCE_GRAIN,
 };
@@ -94,7 +93,7 @@ impl Declare for ContactParams {
         }
     }
     fn build(&self, setting: &Setting) -> Option<Box<dyn Effect>> {
-        let rotation = setting.effects.has::<RotationParams>();
+        let rotation = setting.effects.rotate();
         Some(Box::new(ContactEffect::new(
             setting.world,
             setting.kernel,

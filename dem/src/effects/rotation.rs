@@ -16,3 +16,11 @@ impl Declare for RotationParams {
         None
     }
 }
+
+impl super::Effects {
+    /// Whether bodies turn: what the integrator and the contact law ask of
+    /// the scene, rather than whether an effect of some type is declared.
+    pub fn rotate(&self) -> bool {
+        self.has::<RotationParams>()
+    }
+}

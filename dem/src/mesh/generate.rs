@@ -1,5 +1,5 @@
-//! Generated shapes: boxes, tetrahedra, and the published granulate: the convex
-//! hull of random points on a sphere.
+//! Generated shapes: boxes, tetrahedra, tubes (a rotating drum's shell), and
+//! the published granulate: the convex hull of random points on a sphere.
 
 use super::TriMesh;
 use glam::DVec3;
@@ -74,6 +74,51 @@ pub fn tetrahedron(r: f64) -> TriMesh {
         .expect("the tetrahedron is valid")
 }
 
+/// A tube along y centred on the origin: the shell between two coaxial
+/// prisms of `segments` sides, the inner one inscribed in a circle of radius
+/// `inner_radius`, the outer one `thickness` further out, `length` long and
+/// closed by flat rings at y = ±length/2. Its inside faces the axis: the
+/// shell of a rotating drum, whose ends are closed by plates of their own.
+/// Each side of a prism and each ring's sector is a flat quadrilateral of
+/// two triangles (8 × `segments` triangles in all).
+pub fn tube(inner_radius: f64, thickness: f64, length: f64, segments: usize) -> TriMesh {
+    let n = segments.max(3);
+    let (r_in, r_out, half) = (inner_radius, inner_radius + thickness, 0.5 * length);
+    let radial = |k: usize| {
+        let phi = std::f64::consts::TAU * (k % n) as f64 / n as f64;
+        DVec3::new(phi.cos(), 0.0, phi.sin())
+    };
+    // Per segment k: inner and outer vertices at y = -half and +half.
+    let mut vertices = Vec::with_capacity(4 * n);
+    for k in 0..n {
+        let u = radial(k);
+        for (r, y) in [(r_in, -half), (r_in, half), (r_out, -half), (r_out, half)] {
+            vertices.push(DVec3::new(u.x * r, y, u.z * r));
+        }
+    }
+    let at = |k: usize, corner: usize| (4 * (k % n) + corner) as u32;
+    let mut triangles = Vec::with_capacity(8 * n);
+    for k in 0..n {
+        let mid = (radial(k) + radial(k + 1)).normalize();
+        // Each quad by its corners in order around it, with the side its
+        // outward normal points to.
+        let quads = [
+            ([at(k, 0), at(k, 1), at(k + 1, 1), at(k + 1, 0)], -mid),
+            ([at(k, 2), at(k, 3), at(k + 1, 3), at(k + 1, 2)], mid),
+            ([at(k, 0), at(k, 2), at(k + 1, 2), at(k + 1, 0)], -DVec3::Y),
+            ([at(k, 1), at(k, 3), at(k + 1, 3), at(k + 1, 1)], DVec3::Y),
+        ];
+        for ([a, b, c, d], out) in quads {
+            for t in [[a, b, c], [a, c, d]] {
+                let [p, q, r] = t.map(|i| vertices[i as usize]);
+                let facing = (q - p).cross(r - p).dot(out) > 0.0;
+                triangles.push(if facing { t } else { [t[0], t[2], t[1]] });
+            }
+        }
+    }
+    TriMesh::new(vertices, triangles).expect("the tube mesh is valid")
+}
+
 /// Convex hull of random points on a sphere of radius `r`, with `triangles`
 /// faces (even, at least 4: a hull of V points in general position has 2V - 4).
 pub fn sphere_hull(triangles: usize, r: f64, seed: u64) -> TriMesh {
@@ -123,6 +168,46 @@ mod tests {
                     assert!(nrm.dot(*v - a) <= 1e-12 * nrm.length() * 0.01);
                 }
             }
+        }
+    }
+
+    /// The polygonal shell's volume, n/2 sin(2π/n) (R² − r²) L, and a drum's
+    /// inside: every inner face's outward normal points at the axis.
+    #[test]
+    fn tube_is_a_closed_shell_whose_inside_faces_the_axis() {
+        for (r, t, l, n) in [
+            (0.07, 0.005, 0.045, 48),
+            (1e-6, 1e-7, 3e-6, 3),
+            (2e5, 1e4, 5e4, 7),
+        ] {
+            let m = tube(r, t, l, n);
+            assert_eq!(m.triangles.len(), 8 * n);
+            let sector = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
+            let volume = sector * ((r + t) * (r + t) - r * r) * l;
+            let got = m.signed_volume();
+            assert!(
+                (got - volume).abs() <= 1e-12 * volume,
+                "{got} against {volume}"
+            );
+            let mut inner = 0;
+            for i in 0..m.triangles.len() {
+                let [a, b, c] = m.triangle(i);
+                let normal = (b - a).cross(c - a).normalize();
+                let centre = (a + b + c) / 3.0;
+                let radial = DVec3::new(centre.x, 0.0, centre.z);
+                // The inner faces: all corners on the inner circle.
+                if [a, b, c]
+                    .iter()
+                    .all(|p| (DVec3::new(p.x, 0.0, p.z).length() - r).abs() <= 1e-12 * r)
+                {
+                    inner += 1;
+                    assert!(
+                        normal.dot(radial) < 0.0,
+                        "inner face {i} faces away from the axis"
+                    );
+                }
+            }
+            assert_eq!(inner, 2 * n);
         }
     }
 }

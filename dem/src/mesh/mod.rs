@@ -14,7 +14,7 @@ mod validate;
 mod winding_number;
 
 pub use features::{Crease, Face, Features, FLAT_ANGLE, NO_CREASE};
-pub use generate::{box_mesh, sphere_hull, subdivided, tetrahedron};
+pub use generate::{box_mesh, sphere_hull, subdivided, tetrahedron, tube};
 pub use load::load_mesh;
 pub use mass_properties::MassProperties;
 

@@ -34,6 +34,8 @@
 //! [[obstacles]]
 //! material = "glass"
 //! shape = { kind = "box", size = [0.2, 0.2, 0.01] }
+//! # or a drum's shell along y: { kind = "tube", inner_radius = 0.07,
+//! #   thickness = 0.005, length = 0.045, segments = 48 }
 //! position = [0.0, 0.0, -0.005]
 //! # velocity = [0.02, 0.0, 0.0]         # a moving wall (m/s, of `position`), and
 //! # angular_velocity = [0.0, 0.0, 1.0]  # its turn about `position` (rad/s): both

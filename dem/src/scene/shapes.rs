@@ -3,7 +3,7 @@
 use super::spec::{PlacementSpec, ShapeSpec};
 use super::{positive, Ctx, SceneError, MAX_PARTICLES};
 use crate::body::Body;
-use crate::mesh::{box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, TriMesh};
+use crate::mesh::{box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, tube, TriMesh};
 use glam::{DQuat, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -14,6 +14,9 @@ const MAX_SUBDIVIDE: usize = 6;
 /// A convex hull of a million triangles is finer than any particle model
 /// needs; its hull computation alone would take minutes.
 const MAX_HULL_TRIANGLES: usize = 1_000_000;
+/// A tube of 100,000 sides is round to a part in 10⁹ of its radius; more is
+/// a typo.
+const MAX_TUBE_SEGMENTS: usize = 100_000;
 
 /// The smallest side of a shape's box in its own frame: how thick it is.
 pub(super) fn smallest_extent(mesh: &TriMesh) -> f64 {
@@ -108,6 +111,25 @@ pub(super) fn make_shape(
         }
         ShapeSpec::Tetrahedron { radius } => {
             Ok(tetrahedron(positive(ctx, span, "shape.radius", *radius)?))
+        }
+        ShapeSpec::Tube {
+            inner_radius,
+            thickness,
+            length,
+            segments,
+        } => {
+            let r = positive(ctx, span.clone(), "shape.inner_radius", *inner_radius)?;
+            let t = positive(ctx, span.clone(), "shape.thickness", *thickness)?;
+            let l = positive(ctx, span.clone(), "shape.length", *length)?;
+            if !(3..=MAX_TUBE_SEGMENTS).contains(segments) {
+                return ctx.err(
+                    span,
+                    format!(
+                        "shape.segments must be between 3 and {MAX_TUBE_SEGMENTS}, got {segments}"
+                    ),
+                );
+            }
+            Ok(tube(r, t, l, *segments))
         }
         ShapeSpec::Mesh { file, scale } => {
             let path = if file.is_absolute() {

@@ -120,11 +120,23 @@ pub(super) enum ShapeSpec {
     Tetrahedron {
         radius: f64,
     },
+    /// A rotating drum's shell, along y (see [`crate::mesh::tube`]).
+    Tube {
+        inner_radius: f64,
+        thickness: f64,
+        length: f64,
+        #[serde(default = "tube_segments")]
+        segments: usize,
+    },
     Mesh {
         file: PathBuf,
         #[serde(default = "one")]
         scale: f64,
     },
+}
+
+pub(super) fn tube_segments() -> usize {
+    48
 }
 
 pub(super) fn one() -> f64 {
