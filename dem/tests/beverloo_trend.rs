@@ -3,6 +3,8 @@
 //! widths, 2,025 grains, the fitted law) is `scripts/validate-beverloo.sh`
 //! (docs/validation.md); this is its scene at a quarter of the grains, on
 //! two widths far enough apart that the law predicts about twice the rate.
+mod common;
+
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -15,6 +17,7 @@ fn silo(width: f64, open: f64) -> Scene {
     let floor_x = 0.5 * width + 0.5 * half;
     // The gate's trailing edge reaches the slot's far side at `open`.
     let gate_x = 0.5 * width + 0.825 - 2.0 * open;
+    let materials = common::grains_and_walls(6e-4, 0.3, 0.3);
     let text = format!(
         r#"
         [simulation]
@@ -27,20 +30,7 @@ fn silo(width: f64, open: f64) -> Scene {
         rotation = {{}}
         wall_motion = {{}}
         probes = {{ planes = [{{ name = "outlet", point = [0.0, 0.0, -0.05], normal = [0.0, 0.0, -1.0] }}] }}
-        [[materials]]
-        name = "grain"
-        density = 2500.0
-        stiffness = 50000.0
-        restitution = 0.4
-        halo = 6e-4
-        friction = 0.3
-        [[materials]]
-        name = "wall"
-        density = 7800.0
-        stiffness = 500000.0
-        restitution = 0.4
-        halo = 6e-4
-        friction = 0.3
+        {materials}
         [[particles]]
         material = "grain"
         shape = {{ kind = "hull", triangles = 20, radius = 0.005, seed = 11 }}

@@ -4,6 +4,8 @@
 //! `scripts/validate-drum.sh` (docs/validation.md); this is its drum at
 //! half the length with 98 grains, turning at Fr = 5e-2, with the grains'
 //! friction at 0.1 and at 0.6.
+mod common;
+
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -18,6 +20,7 @@ const SPIN: f64 = 0.4;
 fn drum(mu: f64) -> Scene {
     let turn =
         format!("angular_velocity_table = [[0.3, 0.0, 0.0, 0.0], [{SPIN}, 0.0, {OMEGA}, 0.0]]");
+    let materials = common::grains_and_walls(3e-4, mu, 0.6);
     let text = format!(
         r#"
         [simulation]
@@ -29,20 +32,7 @@ fn drum(mu: f64) -> Scene {
         friction = {{}}
         rotation = {{}}
         wall_motion = {{}}
-        [[materials]]
-        name = "grain"
-        density = 2500.0
-        stiffness = 50000.0
-        restitution = 0.4
-        halo = 3e-4
-        friction = {mu}
-        [[materials]]
-        name = "wall"
-        density = 7800.0
-        stiffness = 500000.0
-        restitution = 0.4
-        halo = 3e-4
-        friction = 0.6
+        {materials}
         [[particles]]
         material = "grain"
         shape = {{ kind = "hull", triangles = 20, radius = 0.005, seed = 11 }}

@@ -1,4 +1,5 @@
-//! Shared by the integration tests: the hard triangle pairs of `tests/data/triangle-pairs.csv`.
+//! Shared by the integration tests: the hard triangle pairs of
+//! `tests/data/triangle-pairs.csv`, and the granular validations' materials.
 #![allow(dead_code)]
 
 mod exact;
@@ -132,4 +133,28 @@ pub fn motion_bits(world: &dem::world::World) -> Vec<u64> {
         .flat_map(|b| b.x.to_array().into_iter().chain(b.l.to_array()))
         .map(f64::to_bits)
         .collect()
+}
+
+/// The `[[materials]]` of the granular validations' reduced scenes (silo,
+/// drum): glass-like grains and stiffer steel walls, restitution 0.4, with
+/// the given halo and frictions.
+pub fn grains_and_walls(halo: f64, grain_friction: f64, wall_friction: f64) -> String {
+    format!(
+        r#"
+        [[materials]]
+        name = "grain"
+        density = 2500.0
+        stiffness = 50000.0
+        restitution = 0.4
+        halo = {halo:e}
+        friction = {grain_friction}
+        [[materials]]
+        name = "wall"
+        density = 7800.0
+        stiffness = 500000.0
+        restitution = 0.4
+        halo = {halo:e}
+        friction = {wall_friction}
+        "#
+    )
 }
