@@ -55,7 +55,7 @@ for path in sorted(glob.glob(os.path.join(runs, "*", "run.h5")), key=lambda p: f
     omega = math.sqrt(fr * G / R)
     f = h5py.File(path, "r")
     grain = f["bodies/mass"][:] > 0
-    com, top, times = [], [], []
+    com, top = [], []
     for k in sorted(f["steps"].keys(), key=int):
         s = f["steps"][k]
         t = s.attrs["time"]
@@ -63,7 +63,7 @@ for path in sorted(glob.glob(os.path.join(runs, "*", "run.h5")), key=lambda p: f
         if TURNED[0] <= turned <= TURNED[1]:
             p = s["positions"][:][grain]
             a, b = angles(p[:, 0], p[:, 2])
-            com.append(a); top.append(b); times.append(t)
+            com.append(a); top.append(b)
     if not com:
         sys.exit(f"{path}: no output step while the drum turns its second radian")
     com, top = np.array(com), np.array(top)
