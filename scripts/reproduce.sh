@@ -21,21 +21,28 @@ page=docs/results.md.new
   echo "and the line \"found:\" under each table says which settings differ by more than it."
   echo
 } > "$page"
+# study NAME ABOUT [ARGS...]: a study on its default scene, or, when ARGS
+# start with --scene FILE, on that scene, its section and files named after it.
 study() {
   local name=$1 about=$2; shift 2
+  local key=$name title=$name
+  if [ "${1:-}" = --scene ]; then
+    key="$name-$(basename "$2" .toml)"
+    title="$name on $(basename "$2")"
+  fi
   local cmd="tridem study $name $*"
-  $tridem study "$name" --output "out/study-$name" --overwrite "$@" > "out/study-$name.txt"
-  for f in out/study-"$name"/*.svg out/study-"$name"/*.png; do cp "$f" "$figs/study-$name-$(basename "$f")"; done
+  $tridem study "$name" --output "out/study-$key" --overwrite "$@" > "out/study-$key.txt"
+  for f in out/study-"$key"/*.svg out/study-"$key"/*.png; do cp "$f" "$figs/study-$key-$(basename "$f")"; done
   {
-    echo "## $name"
+    echo "## $title"
     echo
     echo "\`$cmd\`"
     echo
     echo "$about"
     echo
-    for f in out/study-"$name"/*.svg; do echo "![$name: $(basename "$f" .svg)](figures/study-$name-$(basename "$f"))"; echo; done
+    for f in out/study-"$key"/*.svg; do echo "![$title: $(basename "$f" .svg)](figures/study-$key-$(basename "$f"))"; echo; done
     echo '```'
-    cat "out/study-$name.txt"
+    cat "out/study-$key.txt"
     echo '```'
     echo
   } >> "$page"
@@ -48,6 +55,13 @@ spreads): time per step, the busy imbalance and the particles migrated per setti
 against K; the imbalance over the run. The cost model is fitted to the two extremes (every step, \
 never) and predicts the settings between; the line under the table says whether it picked the \
 measured best within the noise floor."
+study repartition-frequency "The same study on the off-centre silo (scenes/silo-offset.toml: a \
+charge falling into its left side while the bed over the slot on the right drains; an equal split \
+gives one rank the charge in flight, the other the draining bed)." --scene scenes/silo-offset.toml
+study repartition-frequency "The same study on mixed sizes (scenes/mixed.toml: 20 particles of \
+2,000 triangles falling onto the left part of a bed of 2,000 grains; the first partition weighs \
+triangles, so one rank holds the large particles and the other most of the grains, whose contacts \
+are the work)." --scene scenes/mixed.toml
 study partitioners "The five partitioners on the column collapse, repartitioning every 20 steps: \
 time per step, busy imbalance and migration per partitioner, and the imbalance over the run."
 study exchange "Blocking against non-blocking ghost exchange on 2, 3 and 4 ranks of the \

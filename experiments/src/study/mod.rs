@@ -14,6 +14,7 @@
 //! reported as none.
 
 mod common;
+mod model;
 mod node;
 mod ranks;
 

@@ -106,7 +106,7 @@ pub(super) fn specs(args: &StudyArgs) -> Vec<Spec> {
 }
 
 /// A per-step metric's mean over ranks in a run's summary.
-fn mean(r: &Ran, field: &str) -> f64 {
+pub(super) fn mean(r: &Ran, field: &str) -> f64 {
     r.summary["per_step_over_ranks"][field]["mean"]
         .as_f64()
         .unwrap_or(0.0)
@@ -122,7 +122,7 @@ fn mean_of_lines(r: &Ran, field: &str) -> f64 {
 /// what a rank that keeps its particles between repartitionings drifts
 /// into (the imbalance of the whole run's sums would let intervals where
 /// different ranks are busier cancel).
-fn busy_imbalance(r: &Ran) -> f64 {
+pub(super) fn busy_imbalance(r: &Ran) -> f64 {
     mean_of_lines(r, "busy_imbalance")
 }
 
@@ -416,134 +416,6 @@ fn table(groups: &[Group]) -> String {
     s
 }
 
-struct Model {
-    csv: String,
-    verdict: String,
-}
-
-/// A model of the time per step against the repartitioning interval K,
-/// fitted to the two extremes (every step, never) and asked about the
-/// settings between, which it was not fitted to:
-///
-///   t(K) = t0 + c/K + β r K/2
-///
-/// c: the measured cost of one repartitioning at K = the smallest K;
-/// t0 = t(smallest K) − c/K: a step with the ranks balanced; r: how fast
-/// the busy imbalance grows after a repartitioning, per step, from the
-/// never-repartitioned run (its mean imbalance over S steps, 1 + r S/2);
-/// β: what a unit of imbalance costs per step, from the same run. Every
-/// rate is fitted as non-negative. Its best K, √(2c/(β r)), is compared with
-/// the measured best: within the noise floor, or not.
-fn cost_model(args: &StudyArgs, groups: &[Group]) -> Model {
-    let every: Vec<&Group> = groups
-        .iter()
-        .filter(|g| k_of(g).is_some() && g.spec.series != "noise floor")
-        .collect();
-    let first = every
-        .iter()
-        .filter(|g| k_of(g) > Some(0))
-        .min_by_key(|g| k_of(g));
-    let never = every.iter().find(|g| k_of(g) == Some(0));
-    let (Some(first), Some(never)) = (first, never) else {
-        return Model {
-            csv: String::new(),
-            verdict: "cost model: needs a K > 0 and never (0) among --every".into(),
-        };
-    };
-    let k1 = k_of(first).unwrap_or(1) as f64;
-    let steps = args.steps() as f64;
-    let per_repartition = |g: &Group, k: f64| {
-        g.stat(|r| (mean(r, "partition_seconds") + mean(r, "migration_seconds")) * k)
-            .median
-    };
-    let c = per_repartition(first, k1).max(0.0);
-    let t0 = (first.stat(seconds_per_step).median - c / k1).max(0.0);
-    let i_never = never.stat(busy_imbalance).median;
-    let t_never = never.stat(seconds_per_step).median;
-    let r = (2.0 * (i_never - 1.0) / steps).max(0.0);
-    let beta = if i_never > 1.0 {
-        ((t_never - t0) / (i_never - 1.0)).max(0.0)
-    } else {
-        0.0
-    };
-    let predict = |k: f64| {
-        if k <= 0.0 || k >= steps {
-            t0 + beta * (i_never - 1.0)
-        } else {
-            t0 + c / k + beta * r * k / 2.0
-        }
-    };
-    let floor = noise_floor(groups, seconds_per_step).unwrap_or(0.0);
-    let mut csv = String::from(
-        "label,K,measured_median,measured_min,measured_max,predicted,\
-         per_repartition_seconds,busy_imbalance_median,fitted_to\n",
-    );
-    for g in &every {
-        let k = k_of(g).unwrap_or(0) as f64;
-        let t = g.stat(seconds_per_step);
-        let fitted = std::ptr::eq(*g, *first) || std::ptr::eq(*g, *never);
-        writeln!(
-            csv,
-            "{},{k},{:e},{:e},{:e},{:e},{:e},{},{}",
-            g.spec.label,
-            t.median,
-            t.lo,
-            t.hi,
-            predict(k),
-            if k > 0.0 { per_repartition(g, k) } else { 0.0 },
-            g.stat(busy_imbalance).median,
-            fitted
-        )
-        .expect("string");
-    }
-    let by = |f: &dyn Fn(&Group) -> f64| {
-        every
-            .iter()
-            .min_by(|a, b| f(a).total_cmp(&f(b)))
-            .copied()
-            .expect("settings")
-    };
-    let model_best = by(&|g| predict(k_of(g).unwrap_or(0) as f64));
-    let measured_best = by(&|g| g.stat(seconds_per_step).median);
-    let (tm, tb) = (
-        model_best.stat(seconds_per_step).median,
-        measured_best.stat(seconds_per_step).median,
-    );
-    let gap = (tm - tb) / tb;
-    let k_star = if beta * r > 0.0 {
-        format!("{:.0}", (2.0 * c / (beta * r)).sqrt())
-    } else {
-        "none (imbalance costs nothing measurable)".into()
-    };
-    let verdict = format!(
-        "cost model (fitted to {} and never, predicting the others): one repartitioning \
-         {:.3} ms, a balanced step {:.3} ms, imbalance growing {:.2e} per step, costing \
-         {:.3} ms per step per unit; its best K is {k_star}, among the settings {}; measured \
-         best {}. {}",
-        first.spec.label,
-        1e3 * c,
-        1e3 * t0,
-        r,
-        1e3 * beta,
-        model_best.spec.label,
-        measured_best.spec.label,
-        if gap <= floor {
-            format!(
-                "The model's choice is within the noise floor ({:.1}%) of the measured best: it predicts.",
-                100.0 * floor
-            )
-        } else {
-            format!(
-                "The model's choice is {:.1}% slower than the measured best, beyond the noise floor \
-                 ({:.1}%): it does not predict the best setting.",
-                100.0 * gap,
-                100.0 * floor
-            )
-        }
-    );
-    Model { csv, verdict }
-}
-
 /// The distributed studies' report: the summary CSV, the figures, the
 /// table with the noise floor and the finding, and for the repartition
 /// frequency, the cost model.
@@ -559,7 +431,7 @@ pub(super) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResul
         println!("{}", finding(groups, seconds_per_step, floor));
     }
     if args.name == StudyName::RepartitionFrequency {
-        let model = cost_model(args, groups);
+        let model = super::model::fit(groups, args.steps() as f64, k_of);
         write(&dir.join("model.csv"), &model.csv)?;
         println!("{}", model.verdict);
     }
