@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# What building on the previous partition saves: the column collapse
-# (scenes/collapse.toml, whose ranks' work moves as it spreads) on 2 and 4
-# ranks, repartitioned every 100 steps with each partitioner, once reusing
+# What building on the previous partition saves, on the scenes whose ranks'
+# work drifts apart (the column collapse, the off-centre silo, mixed sizes),
+# on 2 and 4 ranks, repartitioned every 100 steps with each partitioner, once reusing
 # the previous partition (the default: RCB keeps its cut axes and starts
 # from its old cuts, parts are renumbered to overlap the old owners) and once
 # from scratch (--fresh-partitions). Trajectories do not depend on the
@@ -18,56 +18,67 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 tridem=target/release/tridem
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-for ranks in 2 4; do
-  for p in $($tridem partition --list); do
-    for mode in reuse fresh; do
-      flag=""
-      [ "$mode" = fresh ] && flag=--fresh-partitions
-      mpirun --oversubscribe -np "$ranks" $tridem run scenes/collapse.toml --steps "$steps" \
-        --partitioner "$p" --repartition-every 100 --weights pairs $flag --quiet --json \
-        --metrics "$tmp/$p-$ranks-$mode.jsonl" --metrics-every 100 >/dev/null 2>&1
+scenes="collapse silo-offset mixed"
+for scene in $scenes; do
+  for ranks in 2 4; do
+    for p in $($tridem partition --list); do
+      for mode in reuse fresh; do
+        flag=""
+        [ "$mode" = fresh ] && flag=--fresh-partitions
+        mpirun --oversubscribe -np "$ranks" $tridem run "scenes/$scene.toml" --steps "$steps" \
+          --partitioner "$p" --repartition-every 100 --weights pairs $flag --quiet --json \
+          --metrics "$tmp/$scene@$p-$ranks-$mode.jsonl" --metrics-every 100 >/dev/null 2>&1
+      done
     done
   done
 done
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 echo "Measured by \`scripts/reuse-table.sh $steps\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d)."
 echo
-python3 - "$tmp" <<'PY'
+python3 - "$tmp" $scenes <<'PY'
 import json, sys, glob, os
-tmp = sys.argv[1]
+tmp, scenes = sys.argv[1], sys.argv[2:]
 def load(name):
     return [json.loads(l) for l in open(os.path.join(tmp, name))]
 def imbalance(v):
     m = sum(v) / len(v)
     return max(v) / m if m > 0 else 1.0
-print("| ranks | partitioner | moved, reused | moved, from scratch | reused / scratch | "
+print("| scene | ranks | partitioner | first by work, reused / scratch | "
+      "moved, reused | moved, from scratch | reused / scratch | "
       "largest repartitioning, reused / scratch | MB moved, reused / scratch | "
       "pair imbalance, reused / scratch | work-weighted pair imbalance, reused / scratch |")
-print("|---|---|---|---|---|---|---|---|---|")
-names = sorted({os.path.basename(f).rsplit("-", 2)[0] for f in glob.glob(os.path.join(tmp, "*.jsonl"))})
-for ranks in (2, 4):
-    for p in names:
-        runs = {m: load("%s-%d-%s.jsonl" % (p, ranks, m)) for m in ("reuse", "fresh")}
-        # The first interval holds the first partitioning, from the dealt
-        # bodies: the same whatever is reused.
-        moved = {m: [sum(l["per_rank"]["migrated_bodies"]) for l in r[1:]] for m, r in runs.items()}
-        mb = {m: sum(sum(l["per_rank"]["migrated_bytes"]) for l in r[1:]) / 1e6 for m, r in runs.items()}
-        pairs = {m: sum(imbalance(l["per_rank"]["triangle_pairs"]) for l in r[1:]) / (len(r) - 1)
-                 for m, r in runs.items()}
-        # What the imbalance costs in time: the slowest rank's work summed over
-        # the intervals against the mean's, so an interval weighs its work.
-        weighted = {m: sum(max(l["per_rank"]["triangle_pairs"]) for l in r[1:]) /
-                    max(1e-300, sum(sum(l["per_rank"]["triangle_pairs"]) / len(l["per_rank"]["triangle_pairs"])
-                                    for l in r[1:]))
-                    for m, r in runs.items()}
-        k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i])
-        a, b = sum(moved["reuse"]), sum(moved["fresh"])
-        print("| %d | %s | %d | %d | %.2f | %d / %d | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
-            ranks, p, a, b, a / b if b else 1.0, moved["reuse"][k], moved["fresh"][k],
-            mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"],
-            weighted["reuse"], weighted["fresh"]))
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+names = sorted({os.path.basename(f).split("@")[1].rsplit("-", 2)[0]
+                for f in glob.glob(os.path.join(tmp, "*.jsonl"))})
+for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names):
+    runs = {m: load("%s@%s-%d-%s.jsonl" % (scene, p, ranks, m)) for m in ("reuse", "fresh")}
+    # The first interval holds the first partitioning, from the dealt
+    # bodies, and the second the first weighed by work, not triangles: what
+    # they move is what the start and the change of weights ask, reused or
+    # not. The partitions that follow the drift come after.
+    first = {m: sum(r[1]["per_rank"]["migrated_bodies"]) for m, r in runs.items()}
+    moved = {m: [sum(l["per_rank"]["migrated_bodies"]) for l in r[2:]] for m, r in runs.items()}
+    mb = {m: sum(sum(l["per_rank"]["migrated_bytes"]) for l in r[2:]) / 1e6 for m, r in runs.items()}
+    pairs = {m: sum(imbalance(l["per_rank"]["triangle_pairs"]) for l in r[1:]) / (len(r) - 1)
+             for m, r in runs.items()}
+    # What the imbalance costs in time: the slowest rank's work summed over
+    # the intervals against the mean's, so an interval weighs its work.
+    weighted = {m: sum(max(l["per_rank"]["triangle_pairs"]) for l in r[1:]) /
+                max(1e-300, sum(sum(l["per_rank"]["triangle_pairs"]) / len(l["per_rank"]["triangle_pairs"])
+                                for l in r[1:]))
+                for m, r in runs.items()}
+    k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i], default=None)
+    largest = "%d / %d" % (moved["reuse"][k], moved["fresh"][k]) if k is not None else "-"
+    a, b = sum(moved["reuse"]), sum(moved["fresh"])
+    print("| %s | %d | %s | %d / %d | %d | %d | %.2f | %s | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
+        scene, ranks, p, first["reuse"], first["fresh"], a, b, a / b if b else 1.0, largest,
+        mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"],
+        weighted["reuse"], weighted["fresh"]))
 print()
-print("Moved: bodies that changed rank over all repartitionings after the first. Largest "
+print("First by work: the bodies moved by the first repartitioning weighed by work (pairs) "
+      "rather than triangles, which moves what the change of weights asks, reused or not. "
+      "Moved: bodies that changed rank over the repartitionings after it, which follow the "
+      "particles' drift. Largest "
       "repartitioning: the one that moved most from scratch, and what the reusing run moved at "
       "the same step. Pair imbalance: max/mean over ranks of the triangle pairs each checked, "
       "averaged over the 100-step intervals (the work the partition balances, counted); "

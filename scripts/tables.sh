@@ -100,7 +100,7 @@ echo "Ranks or threads: done" >&2
 {
   echo "### Migration: reusing the previous partition or starting from scratch"
   echo
-  echo "The bodies each repartitioning moves on the column collapse when the partitioner builds"
+  echo "The bodies each repartitioning moves on the scenes whose ranks' work drifts apart when the partitioner builds"
   echo "on its previous partition (the default) and when it starts from scratch"
   echo "(\`--fresh-partitions\`), with the work imbalance each reaches (docs/partition.md,"
   echo "\"Repartitioning builds on the previous partition\")."
