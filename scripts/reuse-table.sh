@@ -40,13 +40,10 @@ import json, sys, glob, os
 tmp, scenes = sys.argv[1], sys.argv[2:]
 def load(name):
     return [json.loads(l) for l in open(os.path.join(tmp, name))]
-def imbalance(v):
-    m = sum(v) / len(v)
-    return max(v) / m if m > 0 else 1.0
 print("| scene | ranks | partitioner | first by work, reused / scratch | "
       "moved, reused | moved, from scratch | reused / scratch | "
       "largest repartitioning, reused / scratch | MB moved, reused / scratch | "
-      "pair imbalance, reused / scratch | work-weighted pair imbalance, reused / scratch |")
+      "work-weighted pair imbalance, reused / scratch | work-weighted modelled-cost imbalance, reused / scratch |")
 print("|---|---|---|---|---|---|---|---|---|---|---|")
 names = sorted({os.path.basename(f).split("@")[1].rsplit("-", 2)[0]
                 for f in glob.glob(os.path.join(tmp, "*.jsonl"))})
@@ -59,30 +56,31 @@ for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names
     first = {m: sum(r[1]["per_rank"]["migrated_bodies"]) for m, r in runs.items()}
     moved = {m: [sum(l["per_rank"]["migrated_bodies"]) for l in r[2:]] for m, r in runs.items()}
     mb = {m: sum(sum(l["per_rank"]["migrated_bytes"]) for l in r[2:]) / 1e6 for m, r in runs.items()}
-    pairs = {m: sum(imbalance(l["per_rank"]["triangle_pairs"]) for l in r[1:]) / (len(r) - 1)
-             for m, r in runs.items()}
     # What the imbalance costs in time: the slowest rank's work summed over
     # the intervals against the mean's, so an interval weighs its work.
-    weighted = {m: sum(max(l["per_rank"]["triangle_pairs"]) for l in r[1:]) /
-                max(1e-300, sum(sum(l["per_rank"]["triangle_pairs"]) / len(l["per_rank"]["triangle_pairs"])
-                                for l in r[1:]))
-                for m, r in runs.items()}
+    def weighted(field):
+        def of(r):
+            v = [l["per_rank"][field] for l in r[1:]]
+            return sum(max(x) for x in v) / max(1e-300, sum(sum(x) / len(x) for x in v))
+        return {m: of(r) for m, r in runs.items()}
+    pairs, cost = weighted("triangle_pairs"), weighted("modelled_work_ns")
     k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i], default=None)
     largest = "%d / %d" % (moved["reuse"][k], moved["fresh"][k]) if k is not None else "-"
     a, b = sum(moved["reuse"]), sum(moved["fresh"])
     print("| %s | %d | %s | %d / %d | %d | %d | %.2f | %s | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
         scene, ranks, p, first["reuse"], first["fresh"], a, b, a / b if b else 1.0, largest,
         mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"],
-        weighted["reuse"], weighted["fresh"]))
+        cost["reuse"], cost["fresh"]))
 print()
 print("First by work: the bodies moved by the first repartitioning weighed by work (pairs) "
       "rather than triangles, which moves what the change of weights asks, reused or not. "
       "Moved: bodies that changed rank over the repartitionings after it, which follow the "
       "particles' drift. Largest "
       "repartitioning: the one that moved most from scratch, and what the reusing run moved at "
-      "the same step. Pair imbalance: max/mean over ranks of the triangle pairs each checked, "
-      "averaged over the 100-step intervals (the work the partition balances, counted); "
-      "work-weighted: the most any rank checked, summed over the intervals, over the mean's sum, "
-      "so that an interval counts by its work, as it does in the run's time (the collapse's "
-      "first intervals have few contacts, all on one side of a cut).")
+      "the same step. Imbalance: the most any rank did, summed over the 100-step intervals, over "
+      "the mean's sum, so that an interval counts by its work, as it does in the run's time: of "
+      "the triangle pairs checked, and of the work the partitioner balances, the `pairs` "
+      "weight's modelled cost (each rank's bodies, body pairs and triangle pairs at their cost, "
+      "docs/distributed.md, \"Weights\"). Triangle pairs alone leave out the bodies' own cost "
+      "and the body pairs', and weigh a large particle's contacts as their many triangles.")
 PY

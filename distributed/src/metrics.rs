@@ -68,6 +68,9 @@ step_metrics! {
         /// Body pairs and triangle pairs the detection examined.
         body_pairs,
         triangle_pairs,
+        /// What the `pairs` weight's cost model says the step costs here
+        /// (ns, `weights::rank_cost`): the work the partitioner balances.
+        modelled_work_ns,
     }
     seconds {
         partition_seconds,

@@ -408,6 +408,9 @@ impl<'c> DistributedSimulation<'c> {
         m.local_bodies = self.local.world.bodies.len() as u64;
         m.local_triangles = self.local.triangles();
         m.neighbours = self.lists.send.len().max(self.lists.recv.len()) as u64;
+        m.modelled_work_ns =
+            crate::weights::rank_cost(m.owned_bodies, m.body_pairs, m.triangle_pairs).round()
+                as u64;
         // The first step also carries the start's sections (see above).
         m.step_seconds = step_start.elapsed().as_secs_f64() + carried.sections();
         m.busy_seconds =

@@ -50,6 +50,16 @@ pub fn pair_cost(work: [f64; 2], steps: u64) -> f64 {
     COST.body_step + COST.body_pair * per(work[0]) + COST.triangle_pair * per(work[1])
 }
 
+/// What the cost model says a rank's step costs (ns): `owned` bodies, and
+/// the `body_pairs` and `triangle_pairs` it examined, each pair on the rank
+/// of its home particle. The sum of its particles' `pairs` weights over one
+/// step: what the partitioner balances.
+pub fn rank_cost(owned: u64, body_pairs: u64, triangle_pairs: u64) -> f64 {
+    COST.body_step * owned as f64
+        + COST.body_pair * body_pairs as f64
+        + COST.triangle_pair * triangle_pairs as f64
+}
+
 /// Each particle's weight under `weights`: `triangles` its triangle count,
 /// `work` its contacts' counts over the last `steps` steps, `busy` the
 /// rank's busy seconds over them (`steps` 0: no interval yet, triangles).
@@ -116,5 +126,15 @@ mod tests {
         assert!((t[1] / t[0] - p[1] / p[0]).abs() < 1e-9);
         assert_eq!(of(Weights::Pairs, &tri, &work, 0, 0.0), tri.to_vec());
         assert_eq!(of(Weights::Triangles, &tri, &work, 10, 1.0), tri.to_vec());
+    }
+
+    /// A rank's modelled cost is its particles' `pairs` weights summed.
+    #[test]
+    fn a_ranks_cost_is_the_sum_of_its_particles_weights() {
+        let tri = [20.0; 3];
+        let work = [[0.0, 0.0], [3.0, 40.0], [7.0, 130.0]];
+        let sum: f64 = of(Weights::Pairs, &tri, &work, 1, 0.0).iter().sum();
+        let rank = rank_cost(3, 10, 170);
+        assert!((rank - sum).abs() <= 1e-12 * sum, "{rank} against {sum}");
     }
 }
