@@ -107,7 +107,7 @@ pub(super) fn fit(groups: &[Group], steps: f64, k_of: impl Fn(&Group) -> Option<
     let fitted = |g: &Group| std::ptr::eq(g, first) || std::ptr::eq(g, never);
     let csv = csv(&every, &model, &kf, &fitted, never);
     let floor = noise_floor(groups, seconds_per_step).unwrap_or(0.0);
-    let verdict = verdict(&every, &model, &kf, &fitted, floor);
+    let verdict = verdict(&every, &model, &kf, &fitted, &first.spec.label, floor);
     Model { csv, verdict }
 }
 
@@ -154,6 +154,7 @@ fn verdict(
     model: &Fit,
     kf: &dyn Fn(&Group) -> f64,
     fitted: &dyn Fn(&Group) -> bool,
+    fitted_to: &str,
     floor: f64,
 ) -> String {
     let measured = |g: &Group| g.stat(seconds_per_step).median;
@@ -177,12 +178,6 @@ fn verdict(
         Some(k) => format!("{k:.0}"),
         None => "none (imbalance costs nothing measurable)".into(),
     };
-    let fitted_to = every
-        .iter()
-        .filter(|g| fitted(g) && kf(g) > 0.0)
-        .map(|g| g.spec.label.as_str())
-        .next()
-        .unwrap_or("?");
     let mut text = format!(
         "cost model (fitted to {fitted_to} and never, predicting the others): one repartitioning \
          {:.3} ms, a balanced step {:.3} ms, imbalance growing {:.2e} per step, costing \
