@@ -24,6 +24,10 @@ pub struct Body {
     /// An obstacle's prescribed motion (`None`: it stands still, or the body
     /// is a particle, moved by its forces).
     pub drive: Option<Box<Drive>>,
+    /// A particle taken out of the run by an outflow: it no longer moves,
+    /// touches nothing and is acted on by nothing; its state stays as it was
+    /// when it left (which the energy books and the output read).
+    pub removed: bool,
 }
 
 impl Body {
@@ -38,9 +42,10 @@ impl Body {
     }
 
     /// Whether the body takes part in contacts: false for an obstacle
-    /// removed by its drive (as of the time it was last placed).
+    /// removed by its drive (as of the time it was last placed), and for a
+    /// particle an outflow took out.
     pub fn is_present(&self) -> bool {
-        self.drive.as_ref().is_none_or(|d| d.present())
+        !self.removed && self.drive.as_ref().is_none_or(|d| d.present())
     }
 
     /// Whether every state variable (position, orientation, velocity,

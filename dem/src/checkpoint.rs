@@ -18,6 +18,8 @@ pub struct BodyState {
     pub q: DQuat,
     pub v: DVec3,
     pub l: DVec3,
+    /// Taken out of the run by an outflow ([`Body::removed`](crate::body::Body::removed)).
+    pub removed: bool,
 }
 
 impl BodyState {
@@ -28,6 +30,7 @@ impl BodyState {
             q: b.q,
             v: b.v,
             l: b.l,
+            removed: b.removed,
         }
     }
 }
@@ -115,6 +118,11 @@ impl Digest {
         let numbers = [b.x.to_array(), b.v.to_array(), b.l.to_array()];
         numbers.iter().flatten().for_each(|&c| self.0.f64(c));
         b.q.to_array().into_iter().for_each(|c| self.0.f64(c));
+        // Only a removed body adds to the digest: a run without an outflow
+        // digests as it did before bodies could be removed.
+        if b.removed {
+            self.0.u64(1);
+        }
     }
 
     pub fn vector(&mut self, v: DVec3) {

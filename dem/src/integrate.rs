@@ -113,6 +113,7 @@ mod tests {
             inv_inertia_body: inertia.inverse(),
             inertia_body: inertia,
             drive: None,
+            removed: false,
         }
     }
 

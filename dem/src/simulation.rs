@@ -85,7 +85,7 @@ impl Simulation {
         let n = sim.world.bodies.len();
         sim.forces.reset(n);
         for (b, s) in sim.world.bodies.iter_mut().zip(&checkpoint.bodies) {
-            (b.x, b.q, b.v, b.l) = (s.x, s.q, s.v, s.l);
+            (b.x, b.q, b.v, b.l, b.removed) = (s.x, s.q, s.v, s.l, s.removed);
             // A driven wall's pose is the time's (the same bits), and its
             // angular velocity too, which the checkpoint does not hold.
             b.follow_drive(checkpoint.time);
@@ -95,6 +95,8 @@ impl Simulation {
         for (i, (f, t)) in checkpoint.force.iter().zip(&checkpoint.torque).enumerate() {
             sim.forces.set(i, *f, *t);
         }
+        let moving = sim.ctx.bodies.clone();
+        (sim.ctx.bodies, sim.ctx.removed) = split_removed(&sim.world, moving);
         restore_effects(&mut sim.effects, &checkpoint.effects, n)?;
         // Neighbour lists and caches are rebuilt from the restored bodies.
         sim.forget_motion();
@@ -197,6 +199,9 @@ impl Simulation {
             .enumerate()
             .with_min_len(INTEGRATION_GRAIN)
             .map(|(i, b)| {
+                if b.removed {
+                    return 0.0;
+                }
                 half_kick(b, force[i], torque[i], h, rot);
                 let before = (b.x, b.q);
                 drift(b, h, rot);
@@ -217,10 +222,13 @@ impl Simulation {
             .enumerate()
             .with_min_len(KICK_GRAIN)
             .map(|(i, b)| {
-                half_kick(b, force[i], torque[i], h, rot);
+                if !b.removed {
+                    half_kick(b, force[i], torque[i], h, rot);
+                }
                 b.is_finite()
             })
             .reduce(|| true, |a, b| a && b);
+        take_out(&mut self.world, &mut self.ctx, &self.effects);
         self.timings.integration += seconds_since(start);
         self.world.time += h;
         self.world.step += 1;
@@ -410,6 +418,36 @@ pub fn restore_effects(
         ));
     }
     Ok(())
+}
+
+/// At a step's end, takes out of the run the particles of `ctx.bodies`
+/// that an effect removes (an outflow), moving them to `ctx.removed`
+/// (nothing to do, and no loop, when no effect removes particles).
+pub fn take_out(world: &mut World, ctx: &mut StepContext, effects: &[Box<dyn Effect>]) {
+    if !effects.iter().any(|e| e.removes_particles()) {
+        return;
+    }
+    let mut left = Vec::new();
+    ctx.bodies.retain(|&i| {
+        let b = &mut world.bodies[i];
+        b.removed = effects.iter().any(|e| e.removes(b));
+        if b.removed {
+            left.push(i);
+        }
+        !b.removed
+    });
+    if !left.is_empty() {
+        ctx.removed.extend(left);
+        ctx.removed.sort_unstable();
+    }
+}
+
+/// `particles` split into those still in the run and those an outflow took
+/// out (each in the order given).
+pub fn split_removed(world: &World, particles: Vec<usize>) -> (Vec<usize>, Vec<usize>) {
+    particles
+        .into_iter()
+        .partition(|&i| !world.bodies[i].removed)
 }
 
 /// The energy books of `ctx.bodies` and of the effects' share of the

@@ -339,6 +339,11 @@ fn tubes_are_read_and_bad_ones_refused() {
             22,
         ),
         (&format!("{dims}, length = 0.0"), "shape.length", 22),
+        (
+            &format!("{dims}, end_inner_radius = -0.1, length = 0.05"),
+            "shape.end_inner_radius",
+            22,
+        ),
         (&format!("{dims}, length = nan"), "shape.length", 24),
         (
             &format!("{dims}, length = 0.05, segments = 2"),

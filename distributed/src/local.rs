@@ -280,6 +280,7 @@ mod tests {
             inv_inertia_body: DMat3::IDENTITY,
             inertia_body: DMat3::IDENTITY,
             drive: None,
+            removed: false,
         }
     }
 

@@ -14,6 +14,8 @@ pub struct Motion {
     pub q: [f64; 4],
     pub v: [f64; 3],
     pub l: [f64; 3],
+    /// 1 once an outflow has taken the body out ([`Body::removed`]).
+    pub removed: u64,
 }
 
 impl Motion {
@@ -23,6 +25,7 @@ impl Motion {
             q: b.q.to_array(),
             v: b.v.to_array(),
             l: b.l.to_array(),
+            removed: u64::from(b.removed),
         }
     }
 
@@ -32,6 +35,7 @@ impl Motion {
             q: DQuat::from_array(self.q),
             v: DVec3::from_array(self.v),
             l: DVec3::from_array(self.l),
+            removed: self.removed == 1,
         }
     }
 
@@ -41,6 +45,7 @@ impl Motion {
         b.q = DQuat::from_array(self.q);
         b.v = DVec3::from_array(self.v);
         b.l = DVec3::from_array(self.l);
+        b.removed = self.removed == 1;
     }
 }
 
@@ -91,6 +96,7 @@ impl BodyRecord {
             inv_inertia_body: DMat3::from_cols_array(&self.inv_inertia),
             inertia_body: DMat3::from_cols_array(&self.inertia),
             drive: None,
+            removed: false,
         };
         self.motion.put(&mut b);
         b
@@ -215,6 +221,7 @@ mod tests {
             inv_inertia_body: DMat3::from_cols_array(&[1., 2., 3., 4., 5., 6., 7., 8., 9.]),
             inertia_body: DMat3::from_cols_array(&[9., 8., 7., 6., 5., 4., 3., 2., 1.]),
             drive: None,
+            removed: false,
         };
         let r = BodyRecord::of(7, &b, DVec3::X, DVec3::NEG_Y);
         let back = r.body();

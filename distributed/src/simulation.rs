@@ -62,7 +62,8 @@ use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
 use dem::simulation::{
-    build_effects, check_share, energy_books, frame_contacts, shape_radii, NonFinite,
+    build_effects, check_share, energy_books, frame_contacts, shape_radii, split_removed, take_out,
+    NonFinite,
 };
 use glam::DVec3;
 use mpi::collective::SystemOperation;
@@ -300,7 +301,8 @@ impl<'c> DistributedSimulation<'c> {
         for (i, &(f, t)) in loads.iter().enumerate() {
             self.forces.set(i, f, t);
         }
-        self.ctx.bodies.clone_from(&self.local.owned);
+        let owned = self.local.owned.clone();
+        (self.ctx.bodies, self.ctx.removed) = split_removed(&self.local.world, owned);
     }
 
     /// Time and step of the run.
@@ -399,6 +401,9 @@ impl<'c> DistributedSimulation<'c> {
         let within = self.travel <= 0.5 * self.settings.skin;
         let redraw = self.lists_stale || !within;
         self.evaluate(redraw, true)?;
+        let start = Instant::now();
+        take_out(&mut self.local.world, &mut self.ctx, &self.effects);
+        self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         self.local.world.time += h;
         self.local.world.step += 1;
         self.totals += self.ctx.stats;
@@ -449,7 +454,7 @@ impl<'c> DistributedSimulation<'c> {
         let (h, rot) = (self.dt, self.rotation);
         let (force, torque) = self.forces.all();
         let mut moved: f64 = 0.0;
-        for &i in &self.local.owned {
+        for &i in &self.ctx.bodies {
             let b = &mut self.local.world.bodies[i];
             half_kick(b, force[i], torque[i], h, rot);
             let before = (b.x, b.q);
@@ -616,7 +621,7 @@ impl<'c> DistributedSimulation<'c> {
         let kick_where = |local: &mut Local, forces: &Forces, want: bool| {
             let (force, torque) = forces.all();
             for &i in &local.owned {
-                if logged[i] == want {
+                if logged[i] == want && !local.world.bodies[i].removed {
                     half_kick(&mut local.world.bodies[i], force[i], torque[i], h, rot);
                 }
             }
@@ -1078,7 +1083,7 @@ fn dealt(
         let mut body = b.clone();
         let (mut force, mut torque) = (DVec3::ZERO, DVec3::ZERO);
         if let Some((s, f, t)) = state.and_then(|c| c.state(id as usize)) {
-            (body.x, body.q, body.v, body.l) = (s.x, s.q, s.v, s.l);
+            (body.x, body.q, body.v, body.l, body.removed) = (s.x, s.q, s.v, s.l, s.removed);
             (force, torque) = (f, t);
         }
         entries.push(Entry {

@@ -5,6 +5,8 @@
 //!   `checksum` (of every number and name below: a damaged file is refused)
 //! - `positions`, `velocities`, `angular_momenta`, `forces`, `torques` (N×3),
 //!   `orientations` (N×4, xyzw)
+//! - `removed` (N, 0 or 1): the particles an outflow took out; written only
+//!   when there are any (absent: none)
 //! - `effects/<name>/`: each stateful effect, with its place in the pipeline
 //!   as the attribute `position` and the length of its history's rows as
 //!   `row`; datasets `stored` and `taken`, the parts of its books' exact sums
@@ -88,6 +90,12 @@ fn write_to(path: &Path, c: &Checkpoint) -> hdf5::Result<()> {
     file.new_dataset_builder()
         .with_data(&q)
         .create("orientations")?;
+    if b.iter().any(|s| s.removed) {
+        let removed: Array1<u8> = b.iter().map(|s| u8::from(s.removed)).collect();
+        file.new_dataset_builder()
+            .with_data(&removed)
+            .create("removed")?;
+    }
     let effects = file.create_group("effects")?;
     for (i, e) in c.effects.iter().enumerate() {
         let g = effects.create_group(e.effect.as_str())?;
@@ -161,12 +169,25 @@ pub fn read_share(path: &Path, deal: Deal, particles: usize) -> CliResult<Checkp
         vec3("angular_momenta", n)?,
     );
     let q = strided("orientations", 4, n)?;
+    let removed = match file.removed_rows(n)? {
+        false => vec![false; x.len()],
+        true => {
+            let (ids, step) = (n.min(particles), deal.ranks.max(1) as usize);
+            let start = (deal.rank as usize).min(ids);
+            let r = file
+                .dataset("removed")?
+                .read_slice_1d(s![start..ids;step])
+                .map_err(|e| file.fail(format!("dataset removed: {e}")))?;
+            file.flags(r)?
+        }
+    };
     let bodies = (0..x.len())
         .map(|k| BodyState {
             x: x[k],
             q: DQuat::from_xyzw(q[[k, 0]], q[[k, 1]], q[[k, 2]], q[[k, 3]]),
             v: v[k],
             l: l[k],
+            removed: removed[k],
         })
         .collect();
     let (force, torque) = (vec3("forces", counts[1])?, vec3("torques", counts[2])?);
@@ -269,6 +290,26 @@ impl<'p> Opened<'p> {
         }
     }
 
+    /// Whether the file holds the `removed` column (of `n` rows, each 0 or 1).
+    fn removed_rows(&self, n: usize) -> CliResult<bool> {
+        if !self.file.link_exists("removed") {
+            return Ok(false);
+        }
+        let d = self.dataset("removed")?;
+        if d.shape()[..] != [n] {
+            return Err(self.fail(format!("dataset removed does not hold {n} rows")));
+        }
+        Ok(true)
+    }
+
+    /// Rows of the `removed` column as flags (refused unless each is 0 or 1).
+    fn flags(&self, rows: Array1<u8>) -> CliResult<Vec<bool>> {
+        match rows.iter().all(|&v| v <= 1) {
+            true => Ok(rows.iter().map(|&v| v == 1).collect()),
+            false => Err(self.fail("dataset removed holds a value other than 0 and 1".into())),
+        }
+    }
+
     /// The bodies' states hold `n` rows each.
     fn same_rows(&self, n: usize) -> CliResult {
         let (v, l, q) = (
@@ -356,8 +397,17 @@ impl<'p> Opened<'p> {
                 .read_slice_2d(s![at..end, 0..width])
                 .map_err(|e| self.fail(format!("dataset {name}: {e}")))
         };
+        let with_removed = self.removed_rows(n)?;
         for at in (0..n).step_by(CHUNK) {
             let end = (at + CHUNK).min(n);
+            let removed = match with_removed {
+                true => self.flags(
+                    self.dataset("removed")?
+                        .read_slice_1d(s![at..end])
+                        .map_err(|e| self.fail(format!("dataset removed: {e}")))?,
+                )?,
+                false => vec![false; end - at],
+            };
             let (x, v, l, q) = (
                 chunk("positions", at, end, 3)?,
                 chunk("velocities", at, end, 3)?,
@@ -371,6 +421,7 @@ impl<'p> Opened<'p> {
                     q: DQuat::from_xyzw(q[[k, 0]], q[[k, 1]], q[[k, 2]], q[[k, 3]]),
                     v: row3(&v),
                     l: row3(&l),
+                    removed: removed[k],
                 });
             }
         }
@@ -443,6 +494,8 @@ mod tests {
                     q: DQuat::from_xyzw(f(i, 3), f(i, 4), f(i, 5), f(i, 6)),
                     v: v(i, 7),
                     l: v(i, 10),
+                    // Some particles taken out by an outflow.
+                    removed: i % 11 == 3 && i < n - obstacles,
                 })
                 .collect(),
             force: (0..n).map(|i| v(i, 13)).collect(),

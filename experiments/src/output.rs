@@ -518,6 +518,8 @@ impl Output {
         let q = Array2::from_shape_fn((n, 4), |(r, c)| b[r].q.to_array()[c]);
         put(&g, "orientations", &q)?;
         put(&g, "contacts", &Array1::from(frame.contact_counts()))?;
+        let removed: Vec<u8> = b.iter().map(|s| u8::from(s.removed)).collect();
+        put(&g, "removed", &Array1::from(removed))?;
         g.new_attr::<f64>()
             .create("time")
             .and_then(|a| a.write_scalar(&frame.time))
@@ -692,6 +694,7 @@ impl Output {
         ] {
             attribute(x, name, "Node", &[n], "Float", 8, &step(what));
         }
+        attribute(x, "removed", "Node", &[n], "UChar", 1, &step("removed"));
         attribute(
             x,
             "coordination",

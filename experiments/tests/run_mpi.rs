@@ -224,6 +224,49 @@ fn moving_walls_split_and_resume_to_the_bit() {
     resumed_across_rank_counts("resume-mixer", &mixer, &[(2, 700), (3, 600), (1, 700)]);
 }
 
+/// An outflow plane across the hopper's lower part takes out grains that
+/// are still touching others, on whichever rank owns them: split,
+/// repartitioned and resumed across rank counts, the run is one process's
+/// to the bit, the removals, books and counts included.
+#[test]
+fn an_outflow_splits_and_resumes_to_the_bit() {
+    let dir = temp("outflow-scene");
+    let text = std::fs::read_to_string(scene("hopper.toml")).unwrap();
+    let sink = "outflow = { planes = [{ point = [0.0, 0.0, 0.07], normal = [0.0, 0.0, -1.0] }] }";
+    let text = text.replacen("rotation = {}\n", &format!("rotation = {{}}\n{sink}\n"), 1);
+    assert!(text.contains(sink));
+    let file = dir.join("hopper-outflow.toml");
+    std::fs::write(&file, text).unwrap();
+    let splits = [
+        (2, vec!["--repartition-every", "10"]),
+        (3, vec!["--partitioner", "rcb", "--repartition-every", "1"]),
+    ];
+    // The plane takes out grains the runs below compare, most of them
+    // while others touch them.
+    let out = dir.join("check");
+    let r = run(
+        1,
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--steps",
+            "2500",
+            "--quiet",
+            "--output",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let removed = removed_at_last_step(&out.join("run.h5"));
+    assert!(
+        (20..100).contains(&removed),
+        "{removed} grains out by step 2,500"
+    );
+    same_as_one_process("outflow", &file, "4000", 700, &splits);
+    resumed_across_rank_counts("resume-outflow", &file, &[(2, 2200), (3, 600), (1, 1200)]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
     let splits = [
@@ -231,6 +274,19 @@ fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
         (3, vec!["--partitioner", "metis"]),
     ];
     same_as_one_process("two", &scene("two-particles.toml"), "2500", 20, &splits);
+}
+
+/// The particles an outflow had taken out at the last output step.
+fn removed_at_last_step(run_h5: &Path) -> u64 {
+    let f = hdf5::File::open(run_h5).unwrap();
+    let steps = f.group("steps").unwrap();
+    let last = steps.member_names().unwrap().len() - 1;
+    let removed: ndarray::Array1<u8> = steps
+        .dataset(&format!("{last}/removed"))
+        .unwrap()
+        .read_1d()
+        .unwrap();
+    removed.iter().map(|&r| u64::from(r)).sum()
 }
 
 /// Positions, velocities and energies of every output step, as bits.
@@ -247,6 +303,8 @@ fn output_steps(run_h5: &Path) -> Vec<Vec<u64>> {
                 let a: ndarray::Array2<f64> = g.dataset(d).unwrap().read_2d().unwrap();
                 bits.extend(a.iter().map(|x| x.to_bits()));
             }
+            let removed: ndarray::Array1<u8> = g.dataset("removed").unwrap().read_1d().unwrap();
+            bits.extend(removed.iter().map(|&r| u64::from(r)));
             let e = g.group("energy").unwrap();
             let mut names = e.attr_names().unwrap();
             names.sort();

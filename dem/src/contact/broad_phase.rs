@@ -392,6 +392,7 @@ mod tests {
             inv_inertia_body: DMat3::ZERO,
             inertia_body: DMat3::ZERO,
             drive: None,
+            removed: false,
         }
     }
 

@@ -33,6 +33,7 @@ register! {
     damping::DampingParams,
     rotation::RotationParams,
     probes::ProbesParams,
+    outflow::OutflowParams,
 }
 
 pub use contact::{ContactEffect, ContactParams, NormalLaw};
@@ -40,6 +41,7 @@ pub use damping::{DampingEffect, DampingParams};
 pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, Setting};
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
+pub use outflow::{OutflowEffect, OutflowParams, SinkBox, SinkPlane};
 pub use probes::{Plane, ProbesEffect, ProbesParams, Region};
 pub use rotation::RotationParams;
 pub use wall_motion::{WallMotionEffect, WallMotionParams};
@@ -231,6 +233,9 @@ pub struct StepContext {
     /// effects act on and book. On one node every particle; split across
     /// ranks, the rank's own (the others are copies, moved by their owners).
     pub bodies: Vec<usize>,
+    /// The particles this process moved that an outflow took out, in
+    /// increasing index (their state is that at which they left).
+    pub removed: Vec<usize>,
     /// This evaluation's contacts, grouped by body pair in increasing order;
     /// split across ranks, those this rank computes (each contact on one rank).
     pub contacts: Vec<Contact>,
@@ -340,6 +345,16 @@ pub trait Effect: Send {
     /// ranks: empty for an effect that measures nothing.
     fn measures(&self, _world: &World, _ctx: &StepContext) -> Vec<(String, ExactSum)> {
         Vec::new()
+    }
+    /// Whether the effect takes particles out of the run (an outflow): the
+    /// pipeline then asks [`Effect::removes`] of each particle at each
+    /// step's end (and not at all when no effect does).
+    fn removes_particles(&self) -> bool {
+        false
+    }
+    /// Whether particle `b`, as it stands at a step's end, leaves the run.
+    fn removes(&self, _b: &crate::body::Body) -> bool {
+        false
     }
     /// The books the effect keeps from step to step, if any: a checkpoint
     /// holds them, and split across ranks each rank keeps its terms' share.

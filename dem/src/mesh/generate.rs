@@ -79,11 +79,21 @@ pub fn tetrahedron(r: f64) -> TriMesh {
 /// `inner_radius`, the outer one `thickness` further out, `length` long and
 /// closed by flat rings at y = ±length/2. Its inside faces the axis: the
 /// shell of a rotating drum, whose ends are closed by plates of their own.
-/// Each side of a prism and each ring's sector is a flat quadrilateral of
-/// two triangles (8 × `segments` triangles in all).
-pub fn tube(inner_radius: f64, thickness: f64, length: f64, segments: usize) -> TriMesh {
+/// With `end_inner_radius` other than `inner_radius` the inner radius at
+/// y = +length/2 is that one (the outer stays `thickness` further out): the
+/// shell of a truncated pyramid, a funnel. Each side of a prism and each
+/// ring's sector is a flat quadrilateral of two triangles (8 × `segments`
+/// triangles in all).
+pub fn tube(
+    inner_radius: f64,
+    end_inner_radius: f64,
+    thickness: f64,
+    length: f64,
+    segments: usize,
+) -> TriMesh {
     let n = segments.max(3);
-    let (r_in, r_out, half) = (inner_radius, inner_radius + thickness, 0.5 * length);
+    let half = 0.5 * length;
+    let (r0, r1) = (inner_radius, end_inner_radius);
     let radial = |k: usize| {
         let phi = std::f64::consts::TAU * (k % n) as f64 / n as f64;
         DVec3::new(phi.cos(), 0.0, phi.sin())
@@ -92,7 +102,12 @@ pub fn tube(inner_radius: f64, thickness: f64, length: f64, segments: usize) -> 
     let mut vertices = Vec::with_capacity(4 * n);
     for k in 0..n {
         let u = radial(k);
-        for (r, y) in [(r_in, -half), (r_in, half), (r_out, -half), (r_out, half)] {
+        for (r, y) in [
+            (r0, -half),
+            (r1, half),
+            (r0 + thickness, -half),
+            (r1 + thickness, half),
+        ] {
             vertices.push(DVec3::new(u.x * r, y, u.z * r));
         }
     }
@@ -175,15 +190,20 @@ mod tests {
     /// inside: every inner face's outward normal points at the axis.
     #[test]
     fn tube_is_a_closed_shell_whose_inside_faces_the_axis() {
-        for (r, t, l, n) in [
-            (0.07, 0.005, 0.045, 48),
-            (1e-6, 1e-7, 3e-6, 3),
-            (2e5, 1e4, 5e4, 7),
+        // (inner radius, at the +y end, thickness, length, sides): drums,
+        // and funnels (a radius growing or shrinking along y).
+        for (r, r1, t, l, n) in [
+            (0.07, 0.07, 0.005, 0.045, 48),
+            (1e-6, 1e-6, 1e-7, 3e-6, 3),
+            (2e5, 2e5, 1e4, 5e4, 7),
+            (0.02, 0.06, 0.003, 0.07, 24),
+            (3e4, 1e4, 2e3, 5e4, 5),
         ] {
-            let m = tube(r, t, l, n);
+            let m = tube(r, r1, t, l, n);
             assert_eq!(m.triangles.len(), 8 * n);
             let sector = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
-            let volume = sector * ((r + t) * (r + t) - r * r) * l;
+            // ∫ ((r(y) + t)² − r(y)²) dy over the length, r linear in y.
+            let volume = sector * (2.0 * t * 0.5 * (r + r1) + t * t) * l;
             let got = m.signed_volume();
             assert!(
                 (got - volume).abs() <= 1e-12 * volume,
@@ -195,11 +215,12 @@ mod tests {
                 let normal = (b - a).cross(c - a).normalize();
                 let centre = (a + b + c) / 3.0;
                 let radial = DVec3::new(centre.x, 0.0, centre.z);
-                // The inner faces: all corners on the inner circle.
-                if [a, b, c]
-                    .iter()
-                    .all(|p| (DVec3::new(p.x, 0.0, p.z).length() - r).abs() <= 1e-12 * r)
-                {
+                // The inner faces: all corners on the inner surface.
+                let inner_at = |y: f64| r + (r1 - r) * (y / l + 0.5);
+                if [a, b, c].iter().all(|p| {
+                    let ri = inner_at(p.y);
+                    (DVec3::new(p.x, 0.0, p.z).length() - ri).abs() <= 1e-12 * ri
+                }) {
                     inner += 1;
                     assert!(
                         normal.dot(radial) < 0.0,

@@ -344,6 +344,7 @@ fn add_particles(
             inv_inertia_body: inv_inertia,
             inertia_body: props.inertia,
             drive: None,
+            removed: false,
         };
         check_motion(
             ctx,
@@ -444,6 +445,7 @@ fn add_obstacle(
         inv_inertia_body: DMat3::ZERO,
         inertia_body: DMat3::ZERO,
         drive: drive.clone().map(Box::new),
+        removed: false,
     };
     bodies.census.push(Run {
         ids: id..id + 1,

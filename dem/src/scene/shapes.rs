@@ -114,11 +114,16 @@ pub(super) fn make_shape(
         }
         ShapeSpec::Tube {
             inner_radius,
+            end_inner_radius,
             thickness,
             length,
             segments,
         } => {
             let r = positive(ctx, span.clone(), "shape.inner_radius", *inner_radius)?;
+            let r1 = match end_inner_radius {
+                Some(e) => positive(ctx, span.clone(), "shape.end_inner_radius", *e)?,
+                None => r,
+            };
             let t = positive(ctx, span.clone(), "shape.thickness", *thickness)?;
             let l = positive(ctx, span.clone(), "shape.length", *length)?;
             if !(3..=MAX_TUBE_SEGMENTS).contains(segments) {
@@ -129,7 +134,7 @@ pub(super) fn make_shape(
                     ),
                 );
             }
-            Ok(tube(r, t, l, *segments))
+            Ok(tube(r, r1, t, l, *segments))
         }
         ShapeSpec::Mesh { file, scale } => {
             let path = if file.is_absolute() {

@@ -120,9 +120,12 @@ pub(super) enum ShapeSpec {
     Tetrahedron {
         radius: f64,
     },
-    /// A rotating drum's shell, along y (see [`crate::mesh::tube`]).
+    /// A rotating drum's shell, along y, or a funnel's, its inner radius
+    /// `end_inner_radius` at the +y end (see [`crate::mesh::tube`]).
     Tube {
         inner_radius: f64,
+        #[serde(default)]
+        end_inner_radius: Option<f64>,
         thickness: f64,
         length: f64,
         #[serde(default = "tube_segments")]

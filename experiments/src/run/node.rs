@@ -250,7 +250,11 @@ fn warn_fallen(scene: &Scene, sim: &Simulation) {
         return;
     }
     let fallen: Vec<usize> = (0..w.bodies.len())
-        .filter(|&i| !w.bodies[i].is_static() && w.bodies[i].x.dot(down) > lowest_obstacle)
+        .filter(|&i| {
+            let b = &w.bodies[i];
+            // An outflow's removed particles left where the scene says to.
+            !b.is_static() && !b.removed && b.x.dot(down) > lowest_obstacle
+        })
         .collect();
     if let Some(&first) = fallen.first() {
         eprintln!(
