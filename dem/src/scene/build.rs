@@ -94,6 +94,13 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
     let stable_dt = effects
         .has::<ContactParams>()
         .then(|| stable_step(&bodies.world.materials, &bodies.census));
+    let rocking_dt = (effects.has::<ContactParams>() && effects.rotate()).then(|| {
+        rocking_step(
+            &bodies.world.materials,
+            &bodies.census,
+            &bodies.world.shapes,
+        )
+    });
     if let Some(h) = stable_dt.filter(|&h| dt > h) {
         let msg = format!(
             "simulation.dt = {dt:e} s is above the stable step {h:e} s \
@@ -125,6 +132,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
         end_time,
         output_every: sim.output_every,
         stable_dt,
+        rocking_dt,
         kernel,
         warnings: bodies.warnings,
         parallel,
@@ -682,6 +690,59 @@ fn penalty_params(k: &KernelSpec) -> Result<PenaltyParams, String> {
 /// reduced mass (half the lightest particle), h = (2/ω)(√(1 + ζ²) − ζ)
 /// with the largest damping ratio.
 fn stable_step(materials: &[Material], census: &Census) -> f64 {
+    let (k_max, zeta) = stiffest_law(materials, census);
+    step_of(k_max, 2.0 / census.lightest(), zeta)
+}
+
+/// The stable step of a particle rocking on a corner: [`stable_step`] with
+/// each particle's mass replaced by its smallest effective mass at a point
+/// of its surface, 1/m_eff = 1/m + r² λ_max(I⁻¹), r the farthest vertex from
+/// its centre of mass (a push at that corner, square to the arm, about the
+/// axis of least inertia: the worst case). A body resting on corners rocks
+/// about them at up to this rate; a step above it does not resolve the
+/// rocking, which then keeps a resting body rattling.
+fn rocking_step(materials: &[Material], census: &Census, shapes: &[TriMesh]) -> f64 {
+    let (k_max, zeta) = stiffest_law(materials, census);
+    let inv_mass = census
+        .particle_runs()
+        .map(|r| {
+            let reach = shapes[r.shape]
+                .vertices
+                .iter()
+                .map(|v| v.length_squared())
+                .fold(0.0, f64::max);
+            1.0 / r.mass + reach * largest_eigenvalue(r.inv_inertia)
+        })
+        .fold(0.0, f64::max);
+    step_of(k_max, 2.0 * inv_mass, zeta)
+}
+
+/// h = (2/ω)(√(1 + ζ²) − ζ), ω = √(k / m*), for a pair of inverse reduced
+/// mass `inv_mass`.
+fn step_of(k: f64, inv_mass: f64, zeta: f64) -> f64 {
+    let omega = (k * inv_mass).sqrt();
+    2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
+}
+
+/// The largest eigenvalue of a symmetric positive semi-definite 3×3 matrix
+/// (the trigonometric solution of its characteristic cubic).
+fn largest_eigenvalue(a: DMat3) -> f64 {
+    let [c0, c1, c2] = [a.x_axis, a.y_axis, a.z_axis];
+    let p1 = c1.x * c1.x + c2.x * c2.x + c2.y * c2.y;
+    let q = (c0.x + c1.y + c2.z) / 3.0;
+    if p1 <= f64::EPSILON * q * q {
+        return c0.x.max(c1.y).max(c2.z);
+    }
+    let p2 = (c0.x - q).powi(2) + (c1.y - q).powi(2) + (c2.z - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    let b = (a - DMat3::from_diagonal(DVec3::splat(q))) * (1.0 / p);
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    q + 2.0 * p * (r.acos() / 3.0).cos()
+}
+
+/// The stiffest pair of materials that can meet (springs in series) and
+/// the largest damping ratio.
+fn stiffest_law(materials: &[Material], census: &Census) -> (f64, f64) {
     let (used, used_by_particles) = census.materials_used(materials.len());
     let stiffness = |i: usize| materials[i].stiffness.unwrap_or(0.0);
     let mut k_max = 0.0f64;
@@ -696,8 +757,7 @@ fn stable_step(materials: &[Material], census: &Census) -> f64 {
         .filter_map(|m| m.restitution)
         .map(damping_ratio)
         .fold(0.0, f64::max);
-    let omega = (k_max / (0.5 * census.lightest())).sqrt();
-    2.0 / omega * ((1.0 + zeta * zeta).sqrt() - zeta)
+    (k_max, zeta)
 }
 
 /// `[parallel]`, with its line (its names are checked where they are used).
@@ -705,5 +765,35 @@ fn parallel(ctx: &Ctx, span: Range<usize>, p: Parallel) -> Parallel {
     Parallel {
         line: ctx.line_of(span.start),
         ..p
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// R diag(λ) Rᵀ has the eigenvalues λ, whatever the rotation R, at any
+    /// scale; repeated eigenvalues included.
+    #[test]
+    fn the_largest_eigenvalue_of_a_rotated_diagonal_is_its_largest_entry() {
+        let r = DMat3::from_quat(DQuat::from_axis_angle(
+            DVec3::new(0.3, -1.0, 0.6).normalize(),
+            0.9,
+        ));
+        for (d, scale) in [
+            ([1.0, 2.0, 5.0], 1.0),
+            ([3.0, 3.0, 0.5], 1e-9),
+            ([4.0, 4.0, 4.0], 1e12),
+            ([0.0, 7.0, 1.0], 1.0),
+        ] {
+            let lambda = DVec3::from_array(d) * scale;
+            let a = r * DMat3::from_diagonal(lambda) * r.transpose();
+            let got = largest_eigenvalue(a);
+            let want = lambda.max_element();
+            assert!(
+                (got - want).abs() <= 1e-12 * want,
+                "{d:?} x {scale}: {got} against {want}"
+            );
+        }
     }
 }

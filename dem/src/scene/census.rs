@@ -70,7 +70,7 @@ impl Census {
         self.bodies() - self.particles()
     }
 
-    fn particle_runs(&self) -> impl Iterator<Item = &Run> {
+    pub(crate) fn particle_runs(&self) -> impl Iterator<Item = &Run> {
         self.runs.iter().filter(|r| r.fixed.is_none())
     }
 

@@ -135,6 +135,9 @@ pub struct Scene {
     pub output_every: u64,
     /// The largest stable step for this scene's stiffest contact and lightest particle.
     pub stable_dt: Option<f64>,
+    /// The largest step that resolves a particle's rocking on its corners
+    /// (with rotation): above it a body at rest keeps rattling and creeps.
+    pub rocking_dt: Option<f64>,
     pub kernel: Options,
     /// Set when the step exceeds the stable one and the scene allowed it.
     pub warnings: Vec<String>,

@@ -158,8 +158,17 @@ pub(crate) fn describe(args: &RunArgs, scene: &Scene, steps: u64) -> String {
         c.obstacles(),
         scene.effects.names().join(", "),
         scene.dt,
-        scene
-            .stable_dt
-            .map_or(String::new(), |h| format!(" (stable: {h:.3e} s)")),
+        stable_note(scene),
     )
+}
+
+/// The stable steps the header quotes: of one contact, and, with rotation,
+/// of a particle rocking on its corners (below which a state at rest stays
+/// at rest; docs/dem.md, "Stable time step").
+fn stable_note(scene: &Scene) -> String {
+    match (scene.stable_dt, scene.rocking_dt) {
+        (Some(h), Some(r)) => format!(" (stable: {h:.3e} s; at rest: {r:.3e} s)"),
+        (Some(h), None) => format!(" (stable: {h:.3e} s)"),
+        _ => String::new(),
+    }
 }
