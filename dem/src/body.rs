@@ -28,6 +28,10 @@ pub struct Body {
     /// touches nothing and is acted on by nothing; its state stays as it was
     /// when it left (which the energy books and the output read).
     pub removed: bool,
+    /// A particle waiting to be inserted (an insertion): until then it does
+    /// not move, touches nothing and is acted on by nothing, like a removed
+    /// one; its state is where and how it will enter, but for its position.
+    pub pending: bool,
 }
 
 impl Body {
@@ -45,7 +49,12 @@ impl Body {
     /// removed by its drive (as of the time it was last placed), and for a
     /// particle an outflow took out.
     pub fn is_present(&self) -> bool {
-        !self.removed && self.drive.as_ref().is_none_or(|d| d.present())
+        !self.is_out() && self.drive.as_ref().is_none_or(|d| d.present())
+    }
+
+    /// A particle out of the run: not yet inserted, or taken out.
+    pub fn is_out(&self) -> bool {
+        self.removed || self.pending
     }
 
     /// Whether every state variable (position, orientation, velocity,

@@ -20,6 +20,8 @@ pub struct BodyState {
     pub l: DVec3,
     /// Taken out of the run by an outflow ([`Body::removed`](crate::body::Body::removed)).
     pub removed: bool,
+    /// Waiting to be inserted ([`Body::pending`](crate::body::Body::pending)).
+    pub pending: bool,
 }
 
 impl BodyState {
@@ -31,6 +33,7 @@ impl BodyState {
             v: b.v,
             l: b.l,
             removed: b.removed,
+            pending: b.pending,
         }
     }
 }
@@ -122,6 +125,10 @@ impl Digest {
         // digests as it did before bodies could be removed.
         if b.removed {
             self.0.u64(1);
+        }
+        // Likewise a body waiting to be inserted.
+        if b.pending {
+            self.0.u64(2);
         }
     }
 

@@ -114,6 +114,7 @@ mod tests {
             inertia_body: inertia,
             drive: None,
             removed: false,
+            pending: false,
         }
     }
 

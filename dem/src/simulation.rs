@@ -1,7 +1,9 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
-use crate::effects::{Effect, Forces, Setting, StepContext, StepStats};
+use crate::effects::{
+    book_entries, insert_due, Alone, Effect, Forces, Setting, StepContext, StepStats,
+};
 use crate::frame::{EnergyBooks, Frame, FrameContact};
 use crate::integrate::{drift, half_kick, travel_bound};
 use crate::scene::Scene;
@@ -85,7 +87,8 @@ impl Simulation {
         let n = sim.world.bodies.len();
         sim.forces.reset(n);
         for (b, s) in sim.world.bodies.iter_mut().zip(&checkpoint.bodies) {
-            (b.x, b.q, b.v, b.l, b.removed) = (s.x, s.q, s.v, s.l, s.removed);
+            (b.x, b.q, b.v, b.l) = (s.x, s.q, s.v, s.l);
+            (b.removed, b.pending) = (s.removed, s.pending);
             // A driven wall's pose is the time's (the same bits), and its
             // angular velocity too, which the checkpoint does not hold.
             b.follow_drive(checkpoint.time);
@@ -95,8 +98,10 @@ impl Simulation {
         for (i, (f, t)) in checkpoint.force.iter().zip(&checkpoint.torque).enumerate() {
             sim.forces.set(i, *f, *t);
         }
-        let moving = sim.ctx.bodies.clone();
-        (sim.ctx.bodies, sim.ctx.removed) = split_removed(&sim.world, moving);
+        let particles = (0..n)
+            .filter(|&i| !sim.world.bodies[i].is_static())
+            .collect();
+        split_out(&sim.world, particles, &mut sim.ctx);
         restore_effects(&mut sim.effects, &checkpoint.effects, n)?;
         // Neighbour lists and caches are rebuilt from the restored bodies.
         sim.forget_motion();
@@ -144,9 +149,6 @@ impl Simulation {
             forces: Forces::default(),
             ctx: StepContext {
                 dt: scene.dt,
-                bodies: (0..scene.world.bodies.len())
-                    .filter(|&i| !scene.world.bodies[i].is_static())
-                    .collect(),
                 ..StepContext::default()
             },
             totals: StepStats::default(),
@@ -154,6 +156,10 @@ impl Simulation {
             finite: true,
             deep_steps: 0,
         };
+        let particles = (0..scene.world.bodies.len())
+            .filter(|&i| !scene.world.bodies[i].is_static())
+            .collect();
+        split_out(&sim.world, particles, &mut sim.ctx);
         sim.timings = section_times(&sim.effects);
         sim
     }
@@ -199,7 +205,7 @@ impl Simulation {
             .enumerate()
             .with_min_len(INTEGRATION_GRAIN)
             .map(|(i, b)| {
-                if b.removed {
+                if b.is_out() {
                     return 0.0;
                 }
                 half_kick(b, force[i], torque[i], h, rot);
@@ -210,6 +216,18 @@ impl Simulation {
             })
             .reduce(|| 0.0, f64::max);
         self.ctx.moved = (!std::mem::take(&mut self.motion_unknown)).then_some(moved);
+        let end = (t_next, self.world.step + 1);
+        if insert_due(
+            &mut self.world,
+            &mut self.ctx,
+            &mut self.effects,
+            end,
+            &mut Alone,
+        ) > 0
+        {
+            // The inserted particles jumped to their places.
+            self.ctx.moved = None;
+        }
         self.timings.integration += seconds_since(start);
         self.evaluate_forces();
         let start = Instant::now();
@@ -222,12 +240,13 @@ impl Simulation {
             .enumerate()
             .with_min_len(KICK_GRAIN)
             .map(|(i, b)| {
-                if !b.removed {
+                if !b.is_out() {
                     half_kick(b, force[i], torque[i], h, rot);
                 }
                 b.is_finite()
             })
             .reduce(|| true, |a, b| a && b);
+        book_entries(&self.world, &mut self.effects);
         take_out(&mut self.world, &mut self.ctx, &self.effects);
         self.timings.integration += seconds_since(start);
         self.world.time += h;
@@ -442,12 +461,14 @@ pub fn take_out(world: &mut World, ctx: &mut StepContext, effects: &[Box<dyn Eff
     }
 }
 
-/// `particles` split into those still in the run and those an outflow took
-/// out (each in the order given).
-pub fn split_removed(world: &World, particles: Vec<usize>) -> (Vec<usize>, Vec<usize>) {
-    particles
-        .into_iter()
-        .partition(|&i| !world.bodies[i].removed)
+/// `particles` split into `ctx.bodies`, those in the run, `ctx.removed`,
+/// those an outflow took out, and `ctx.pending`, those waiting to be
+/// inserted (each in the order given).
+pub fn split_out(world: &World, particles: Vec<usize>, ctx: &mut StepContext) {
+    let (out, bodies): (Vec<usize>, Vec<usize>) =
+        (particles.into_iter()).partition(|&i| world.bodies[i].is_out());
+    ctx.bodies = bodies;
+    (ctx.removed, ctx.pending) = out.into_iter().partition(|&i| world.bodies[i].removed);
 }
 
 /// The energy books of `ctx.bodies` and of the effects' share of the

@@ -25,6 +25,14 @@ pub struct World {
 impl World {
     /// Body `i`'s id in the whole scene.
     #[inline]
+    /// The index of the body of id `id`, if this world holds it.
+    pub fn index_of(&self, id: u32) -> Option<usize> {
+        match self.ids.is_empty() {
+            true => ((id as usize) < self.bodies.len()).then_some(id as usize),
+            false => self.ids.binary_search(&id).ok(),
+        }
+    }
+
     pub fn id(&self, i: usize) -> u32 {
         if self.ids.is_empty() {
             i as u32

@@ -281,6 +281,7 @@ mod tests {
             inertia_body: DMat3::IDENTITY,
             drive: None,
             removed: false,
+            pending: false,
         }
     }
 

@@ -14,8 +14,9 @@ pub struct Motion {
     pub q: [f64; 4],
     pub v: [f64; 3],
     pub l: [f64; 3],
-    /// 1 once an outflow has taken the body out ([`Body::removed`]).
-    pub removed: u64,
+    /// Bit 0: an outflow has taken the body out ([`Body::removed`]); bit 1:
+    /// it waits to be inserted ([`Body::pending`]).
+    pub out: u64,
 }
 
 impl Motion {
@@ -25,7 +26,7 @@ impl Motion {
             q: b.q.to_array(),
             v: b.v.to_array(),
             l: b.l.to_array(),
-            removed: u64::from(b.removed),
+            out: u64::from(b.removed) | (u64::from(b.pending) << 1),
         }
     }
 
@@ -35,7 +36,8 @@ impl Motion {
             q: DQuat::from_array(self.q),
             v: DVec3::from_array(self.v),
             l: DVec3::from_array(self.l),
-            removed: self.removed == 1,
+            removed: self.out & 1 == 1,
+            pending: self.out & 2 == 2,
         }
     }
 
@@ -45,7 +47,8 @@ impl Motion {
         b.q = DQuat::from_array(self.q);
         b.v = DVec3::from_array(self.v);
         b.l = DVec3::from_array(self.l);
-        b.removed = self.removed == 1;
+        b.removed = self.out & 1 == 1;
+        b.pending = self.out & 2 == 2;
     }
 }
 
@@ -97,6 +100,7 @@ impl BodyRecord {
             inertia_body: DMat3::from_cols_array(&self.inertia),
             drive: None,
             removed: false,
+            pending: false,
         };
         self.motion.put(&mut b);
         b
@@ -222,6 +226,7 @@ mod tests {
             inertia_body: DMat3::from_cols_array(&[9., 8., 7., 6., 5., 4., 3., 2., 1.]),
             drive: None,
             removed: false,
+            pending: false,
         };
         let r = BodyRecord::of(7, &b, DVec3::X, DVec3::NEG_Y);
         let back = r.body();

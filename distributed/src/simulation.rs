@@ -55,14 +55,17 @@ use dem::body::Body;
 use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
 use dem::contact::{Bounds, Contact, Detector, Role, Share};
 use dem::distance::Options;
-use dem::effects::{ContactParams, Effect, ForceTerm, Forces, StepContext, StepStats};
+use dem::effects::{
+    book_entries, insert_due, insertion_due, Agree, Candidate, ContactParams, Effect, ForceTerm,
+    Forces, StepContext, StepStats,
+};
 use dem::frame::{EnergyBooks, Frame};
 use dem::integrate::{drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
 use dem::simulation::{
-    build_effects, check_share, energy_books, frame_contacts, shape_radii, split_removed, take_out,
+    build_effects, check_share, energy_books, frame_contacts, shape_radii, split_out, take_out,
     NonFinite,
 };
 use glam::DVec3;
@@ -70,7 +73,7 @@ use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
-use partition::comm::{all_to_all_v, gather_v};
+use partition::comm::{all_gather_v, all_to_all_v, gather_v};
 use partition::{Aabb, Backend, Item, Partitioner};
 use std::time::Instant;
 
@@ -302,7 +305,7 @@ impl<'c> DistributedSimulation<'c> {
             self.forces.set(i, f, t);
         }
         let owned = self.local.owned.clone();
-        (self.ctx.bodies, self.ctx.removed) = split_removed(&self.local.world, owned);
+        split_out(&self.local.world, owned, &mut self.ctx);
     }
 
     /// Time and step of the run.
@@ -373,17 +376,20 @@ impl<'c> DistributedSimulation<'c> {
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
         let finite = (self.local.owned.iter()).all(|&i| self.local.world.bodies[i].is_finite());
+        let h = self.dt;
+        let end = (self.local.world.time + h, self.local.world.step + 1);
+        let due = insertion_due(&self.local.world, &self.ctx, &self.effects, end.0, end.1);
         let flags = [
             moved,
             f64::from(u8::from(stop)),
             f64::from(u8::from(!finite)),
             f64::from(u8::from(self.ctx.stats.detection.deep_contacts > 0)),
+            f64::from(u8::from(due)),
         ];
-        let mut global = [0.0; 4];
+        let mut global = [0.0; 5];
         self.comm
             .all_reduce_into(&flags[..], &mut global[..], SystemOperation::max());
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
-        let h = self.dt;
         if global[2] > 0.0 {
             let at = NonFinite {
                 step: self.local.world.step + 1,
@@ -396,12 +402,23 @@ impl<'c> DistributedSimulation<'c> {
         } else {
             0
         };
+        if global[4] > 0.0 {
+            let start = Instant::now();
+            let mut share = RankShare(self.comm);
+            let (world, ctx) = (&mut self.local.world, &mut self.ctx);
+            if insert_due(world, ctx, &mut self.effects, end, &mut share) > 0 {
+                // Every rank made the same choices: all redraw together.
+                self.lists_stale = true;
+            }
+            self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
+        }
         // NaN travel (a body's state gone bad) redraws too.
         self.travel += global[0];
         let within = self.travel <= 0.5 * self.settings.skin;
         let redraw = self.lists_stale || !within;
         self.evaluate(redraw, true)?;
         let start = Instant::now();
+        book_entries(&self.local.world, &mut self.effects);
         take_out(&mut self.local.world, &mut self.ctx, &self.effects);
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         self.local.world.time += h;
@@ -621,7 +638,7 @@ impl<'c> DistributedSimulation<'c> {
         let kick_where = |local: &mut Local, forces: &Forces, want: bool| {
             let (force, torque) = forces.all();
             for &i in &local.owned {
-                if logged[i] == want && !local.world.bodies[i].removed {
+                if logged[i] == want && !local.world.bodies[i].is_out() {
                     half_kick(&mut local.world.bodies[i], force[i], torque[i], h, rot);
                 }
             }
@@ -1083,7 +1100,8 @@ fn dealt(
         let mut body = b.clone();
         let (mut force, mut torque) = (DVec3::ZERO, DVec3::ZERO);
         if let Some((s, f, t)) = state.and_then(|c| c.state(id as usize)) {
-            (body.x, body.q, body.v, body.l, body.removed) = (s.x, s.q, s.v, s.l, s.removed);
+            (body.x, body.q, body.v, body.l) = (s.x, s.q, s.v, s.l);
+            (body.removed, body.pending) = (s.removed, s.pending);
             (force, torque) = (f, t);
         }
         entries.push(Entry {
@@ -1097,6 +1115,27 @@ fn dealt(
         });
     }
     (entries, obstacles)
+}
+
+/// The ranks of a run share an insertion's decisions (collective).
+struct RankShare<'a>(&'a SimpleCommunicator);
+
+impl Agree for RankShare<'_> {
+    fn gather(&mut self, mine: &[Candidate]) -> Vec<Candidate> {
+        let numbers: Vec<f64> = mine.iter().flat_map(|c| c.to_numbers()).collect();
+        let all = all_gather_v(self.0, &numbers);
+        (all.chunks_exact(6))
+            .map(|n| Candidate::from_numbers(n.try_into().expect("six numbers")))
+            .collect()
+    }
+
+    fn any(&mut self, mine: &[bool]) -> Vec<bool> {
+        let mine: Vec<u8> = mine.iter().map(|&b| u8::from(b)).collect();
+        let mut all = vec![0u8; mine.len()];
+        self.0
+            .all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
+        all.into_iter().map(|b| b == 1).collect()
+    }
 }
 
 fn start_state<'a>(start: &Start<'a>) -> Option<&'a CheckpointShare> {

@@ -5,7 +5,8 @@
 //!   `checksum` (of every number and name below: a damaged file is refused)
 //! - `positions`, `velocities`, `angular_momenta`, `forces`, `torques` (N×3),
 //!   `orientations` (N×4, xyzw)
-//! - `removed` (N, 0 or 1): the particles an outflow took out; written only
+//! - `removed` (N, 0 or 1): the particles an outflow took out, and
+//!   `pending` (N, 0 or 1): those waiting to be inserted; each written only
 //!   when there are any (absent: none)
 //! - `effects/<name>/`: each stateful effect, with its place in the pipeline
 //!   as the attribute `position` and the length of its history's rows as
@@ -90,11 +91,11 @@ fn write_to(path: &Path, c: &Checkpoint) -> hdf5::Result<()> {
     file.new_dataset_builder()
         .with_data(&q)
         .create("orientations")?;
-    if b.iter().any(|s| s.removed) {
-        let removed: Array1<u8> = b.iter().map(|s| u8::from(s.removed)).collect();
-        file.new_dataset_builder()
-            .with_data(&removed)
-            .create("removed")?;
+    for (name, flag) in FLAGS {
+        if b.iter().any(flag) {
+            let rows: Array1<u8> = b.iter().map(|s| u8::from(flag(s))).collect();
+            file.new_dataset_builder().with_data(&rows).create(name)?;
+        }
     }
     let effects = file.create_group("effects")?;
     for (i, e) in c.effects.iter().enumerate() {
@@ -117,6 +118,10 @@ fn write_to(path: &Path, c: &Checkpoint) -> hdf5::Result<()> {
     }
     file.close()
 }
+
+/// The flag columns, each written only when some body has the flag.
+type Flag = fn(&BodyState) -> bool;
+const FLAGS: [(&str, Flag); 2] = [("removed", |s| s.removed), ("pending", |s| s.pending)];
 
 /// The whole checkpoint at `path`, as one process resumes it.
 pub fn read(path: &Path) -> CliResult<Checkpoint> {
@@ -169,18 +174,21 @@ pub fn read_share(path: &Path, deal: Deal, particles: usize) -> CliResult<Checkp
         vec3("angular_momenta", n)?,
     );
     let q = strided("orientations", 4, n)?;
-    let removed = match file.removed_rows(n)? {
-        false => vec![false; x.len()],
-        true => {
-            let (ids, step) = (n.min(particles), deal.ranks.max(1) as usize);
-            let start = (deal.rank as usize).min(ids);
-            let r = file
-                .dataset("removed")?
-                .read_slice_1d(s![start..ids;step])
-                .map_err(|e| file.fail(format!("dataset removed: {e}")))?;
-            file.flags(r)?
+    let column = |name: &str| -> CliResult<Vec<bool>> {
+        match file.flag_rows(name, n)? {
+            false => Ok(vec![false; x.len()]),
+            true => {
+                let (ids, step) = (n.min(particles), deal.ranks.max(1) as usize);
+                let start = (deal.rank as usize).min(ids);
+                let r = file
+                    .dataset(name)?
+                    .read_slice_1d(s![start..ids;step])
+                    .map_err(|e| file.fail(format!("dataset {name}: {e}")))?;
+                file.flags(name, r)
+            }
         }
     };
+    let (removed, pending) = (column("removed")?, column("pending")?);
     let bodies = (0..x.len())
         .map(|k| BodyState {
             x: x[k],
@@ -188,6 +196,7 @@ pub fn read_share(path: &Path, deal: Deal, particles: usize) -> CliResult<Checkp
             v: v[k],
             l: l[k],
             removed: removed[k],
+            pending: pending[k],
         })
         .collect();
     let (force, torque) = (vec3("forces", counts[1])?, vec3("torques", counts[2])?);
@@ -290,23 +299,23 @@ impl<'p> Opened<'p> {
         }
     }
 
-    /// Whether the file holds the `removed` column (of `n` rows, each 0 or 1).
-    fn removed_rows(&self, n: usize) -> CliResult<bool> {
-        if !self.file.link_exists("removed") {
+    /// Whether the file holds the flag column `name` (of `n` rows, each 0 or 1).
+    fn flag_rows(&self, name: &str, n: usize) -> CliResult<bool> {
+        if !self.file.link_exists(name) {
             return Ok(false);
         }
-        let d = self.dataset("removed")?;
+        let d = self.dataset(name)?;
         if d.shape()[..] != [n] {
-            return Err(self.fail(format!("dataset removed does not hold {n} rows")));
+            return Err(self.fail(format!("dataset {name} does not hold {n} rows")));
         }
         Ok(true)
     }
 
-    /// Rows of the `removed` column as flags (refused unless each is 0 or 1).
-    fn flags(&self, rows: Array1<u8>) -> CliResult<Vec<bool>> {
+    /// Rows of the flag column `name` (refused unless each is 0 or 1).
+    fn flags(&self, name: &str, rows: Array1<u8>) -> CliResult<Vec<bool>> {
         match rows.iter().all(|&v| v <= 1) {
             true => Ok(rows.iter().map(|&v| v == 1).collect()),
-            false => Err(self.fail("dataset removed holds a value other than 0 and 1".into())),
+            false => Err(self.fail(format!("dataset {name} holds a value other than 0 and 1"))),
         }
     }
 
@@ -397,17 +406,19 @@ impl<'p> Opened<'p> {
                 .read_slice_2d(s![at..end, 0..width])
                 .map_err(|e| self.fail(format!("dataset {name}: {e}")))
         };
-        let with_removed = self.removed_rows(n)?;
+        let with = [self.flag_rows("removed", n)?, self.flag_rows("pending", n)?];
         for at in (0..n).step_by(CHUNK) {
             let end = (at + CHUNK).min(n);
-            let removed = match with_removed {
+            let column = |name: &str, present: bool| match present {
                 true => self.flags(
-                    self.dataset("removed")?
+                    name,
+                    self.dataset(name)?
                         .read_slice_1d(s![at..end])
-                        .map_err(|e| self.fail(format!("dataset removed: {e}")))?,
-                )?,
-                false => vec![false; end - at],
+                        .map_err(|e| self.fail(format!("dataset {name}: {e}")))?,
+                ),
+                false => Ok(vec![false; end - at]),
             };
+            let (removed, pending) = (column("removed", with[0])?, column("pending", with[1])?);
             let (x, v, l, q) = (
                 chunk("positions", at, end, 3)?,
                 chunk("velocities", at, end, 3)?,
@@ -422,6 +433,7 @@ impl<'p> Opened<'p> {
                     v: row3(&v),
                     l: row3(&l),
                     removed: removed[k],
+                    pending: pending[k],
                 });
             }
         }
@@ -496,6 +508,7 @@ mod tests {
                     l: v(i, 10),
                     // Some particles taken out by an outflow.
                     removed: i % 11 == 3 && i < n - obstacles,
+                    pending: i % 13 == 5 && i < n - obstacles,
                 })
                 .collect(),
             force: (0..n).map(|i| v(i, 13)).collect(),

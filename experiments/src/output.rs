@@ -520,6 +520,8 @@ impl Output {
         put(&g, "contacts", &Array1::from(frame.contact_counts()))?;
         let removed: Vec<u8> = b.iter().map(|s| u8::from(s.removed)).collect();
         put(&g, "removed", &Array1::from(removed))?;
+        let pending: Vec<u8> = b.iter().map(|s| u8::from(s.pending)).collect();
+        put(&g, "pending", &Array1::from(pending))?;
         g.new_attr::<f64>()
             .create("time")
             .and_then(|a| a.write_scalar(&frame.time))
@@ -695,6 +697,7 @@ impl Output {
             attribute(x, name, "Node", &[n], "Float", 8, &step(what));
         }
         attribute(x, "removed", "Node", &[n], "UChar", 1, &step("removed"));
+        attribute(x, "pending", "Node", &[n], "UChar", 1, &step("pending"));
         attribute(
             x,
             "coordination",

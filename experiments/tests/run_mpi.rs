@@ -264,6 +264,39 @@ fn an_outflow_splits_and_resumes_to_the_bit() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Grains poured into the hopper from a box above its fill, 40 at 400 per
+/// second, onto grains that are still moving: on 2 and 3 ranks,
+/// repartitioned as they go, the candidates, blocked tests and choices
+/// are one process's, and so is the run, to the bit; resumed with grains
+/// still waiting, across rank counts, too.
+#[test]
+fn an_insertion_splits_and_resumes_to_the_bit() {
+    let dir = temp("insertion-scene");
+    let text = std::fs::read_to_string(scene("hopper.toml")).unwrap();
+    let text = text.replacen("rotation = {}\n", "rotation = {}\ninsertion = {}\n", 1);
+    let pour = r#"
+[[particles]]
+material = "grain"
+shape = { kind = "hull", triangles = 20, radius = 0.005, seed = 11 }
+placement = { kind = "insert", count = 40, region = { kind = "box", lo = [-0.02, -0.02, 0.17], hi = [0.02, 0.02, 0.19] }, rate = 400.0, seed = 5 }
+orientation = "random"
+velocity = [0.0, 0.0, -0.5]
+
+[[obstacles]]"#;
+    let text = text.replacen("\n[[obstacles]]", pour, 1);
+    assert!(text.contains("insertion = {}") && text.contains("kind = \"insert\""));
+    let file = dir.join("hopper-pour.toml");
+    std::fs::write(&file, text).unwrap();
+    let splits = [
+        (2, vec!["--partitioner", "rcb", "--repartition-every", "7"]),
+        (3, vec!["--partitioner", "rcb", "--repartition-every", "1"]),
+    ];
+    same_as_one_process("insertion", &file, "3000", 700, &splits);
+    // At step 1,000 (t = 0.05 s) about half the grains still wait.
+    resumed_across_rank_counts("resume-insertion", &file, &[(2, 1000), (1, 800), (3, 700)]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
     let splits = [
@@ -300,8 +333,10 @@ fn output_steps(run_h5: &Path) -> Vec<Vec<u64>> {
                 let a: ndarray::Array2<f64> = g.dataset(d).unwrap().read_2d().unwrap();
                 bits.extend(a.iter().map(|x| x.to_bits()));
             }
-            let removed: ndarray::Array1<u8> = g.dataset("removed").unwrap().read_1d().unwrap();
-            bits.extend(removed.iter().map(|&r| u64::from(r)));
+            for flag in ["removed", "pending"] {
+                let a: ndarray::Array1<u8> = g.dataset(flag).unwrap().read_1d().unwrap();
+                bits.extend(a.iter().map(|&r| u64::from(r)));
+            }
             let e = g.group("energy").unwrap();
             let mut names = e.attr_names().unwrap();
             names.sort();

@@ -393,6 +393,7 @@ mod tests {
             inertia_body: DMat3::ZERO,
             drive: None,
             removed: false,
+            pending: false,
         }
     }
 

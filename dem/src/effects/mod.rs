@@ -34,6 +34,7 @@ register! {
     rotation::RotationParams,
     probes::ProbesParams,
     outflow::OutflowParams,
+    insertion::InsertionParams,
 }
 
 pub use contact::{ContactEffect, ContactParams, NormalLaw};
@@ -41,6 +42,10 @@ pub use damping::{DampingEffect, DampingParams};
 pub use declare::{kind, kind_of, Declare, Declared, Effects, Kind, MaterialParam, Setting};
 pub use friction::{FrictionEffect, FrictionParams};
 pub use gravity::{GravityEffect, GravityParams};
+pub use insertion::{
+    book_entries, choose, insert_due, insertion_due, Agree, Alone, Candidate, InsertRegion,
+    InsertionEffect, InsertionParams, Stream,
+};
 pub use outflow::{OutflowEffect, OutflowParams, SinkBox, SinkPlane};
 pub use probes::{Plane, ProbesEffect, ProbesParams, Region};
 pub use rotation::RotationParams;
@@ -236,6 +241,9 @@ pub struct StepContext {
     /// The particles this process moved that an outflow took out, in
     /// increasing index (their state is that at which they left).
     pub removed: Vec<usize>,
+    /// The particles this process holds that wait to be inserted, in
+    /// increasing index.
+    pub pending: Vec<usize>,
     /// This evaluation's contacts, grouped by body pair in increasing order;
     /// split across ranks, those this rank computes (each contact on one rank).
     pub contacts: Vec<Contact>,
@@ -356,6 +364,31 @@ pub trait Effect: Send {
     fn removes(&self, _b: &crate::body::Body) -> bool {
         false
     }
+    /// Whether the effect inserts particles: the pipeline then offers it the
+    /// waiting ones at each step's end (see `insertion`), and not at all
+    /// when no effect does.
+    fn inserts_particles(&self) -> bool {
+        false
+    }
+    /// The positions to try for the particles of `ctx.pending` due by time
+    /// `t`, the end of step `step`.
+    fn candidates(
+        &self,
+        _world: &World,
+        _ctx: &StepContext,
+        _t: f64,
+        _step: u64,
+    ) -> Vec<Candidate> {
+        Vec::new()
+    }
+    /// Per candidate, whether a particle of `ctx.bodies` is in its way.
+    fn blocks(&self, _world: &World, _ctx: &StepContext, candidates: &[Candidate]) -> Vec<bool> {
+        vec![false; candidates.len()]
+    }
+    /// Puts the particles of `placed` this process holds into the run.
+    fn admit(&mut self, _world: &mut World, _ctx: &mut StepContext, _placed: &[Candidate]) {}
+    /// At the step's end: books what the particles it put in brought.
+    fn book_entries(&mut self, _world: &World) {}
     /// The books the effect keeps from step to step, if any: a checkpoint
     /// holds them, and split across ranks each rank keeps its terms' share.
     fn ledger(&self) -> Option<&Ledger> {

@@ -4,6 +4,7 @@
 
 use super::census::Run;
 use super::shapes::{check_motion, make_shape, placements, random_rotation, smallest_extent};
+use super::spec::PlacementSpec;
 use super::spec::{
     KernelSpec, MaterialSpec, ObstacleSpec, ParticleSpec, SceneFile, SimulationSpec,
 };
@@ -13,7 +14,9 @@ use super::{
 };
 use crate::body::{Body, Drive, Profile};
 use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Threading};
-use crate::effects::{ContactParams, Declare, Effects, WallMotionParams, KINDS};
+use crate::effects::{
+    ContactParams, Declare, Effects, InsertionParams, Stream, WallMotionParams, KINDS,
+};
 use crate::material::{damping_ratio, Material};
 use crate::mesh::{MassProperties, TriMesh};
 use crate::world::World;
@@ -37,6 +40,8 @@ struct Bodies {
     census: Census,
     deal: Deal,
     warnings: Vec<String>,
+    /// The groups to insert during the run, with where the scene places each.
+    streams: Vec<(Stream, Range<usize>)>,
 }
 
 impl Bodies {
@@ -55,7 +60,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
     let sim_span = spec.simulation.span();
     let sim = spec.simulation.into_inner();
     let (dt, end_time) = time_stepping(ctx, sim_span.clone(), &sim)?;
-    let effects = effects(ctx, &spec.effects)?;
+    let mut effects = effects(ctx, &spec.effects)?;
     let materials = materials(ctx, &spec.materials, &effects)?;
     let mut bodies = Bodies {
         world: World {
@@ -65,6 +70,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
         census: Census::default(),
         deal,
         warnings: Vec::new(),
+        streams: Vec::new(),
     };
     for p in &spec.particles {
         add_particles(ctx, p, dt, &mut bodies)?;
@@ -84,6 +90,7 @@ pub(super) fn build(ctx: &Ctx, spec: SceneFile, deal: Deal) -> Result<Scene, Sce
              or angular_velocity",
         );
     }
+    insertion(ctx, &spec.effects, &mut effects, &bodies)?;
     if bodies.census.particles() == 0 {
         return ctx.err(0..0, "the scene has no particles");
     }
@@ -335,6 +342,29 @@ fn add_particles(
     let shape = world.shapes.len();
     world.shapes.push(local);
     let first = bodies.census.bodies() as u32;
+    let pending = match &p.placement {
+        PlacementSpec::Insert {
+            count,
+            region,
+            rate,
+            start,
+            seed,
+        } => {
+            let stream = Stream {
+                first,
+                count: *count as u32,
+                shape,
+                material: mat,
+                region: region.clone(),
+                rate: *rate,
+                start: *start,
+                seed: *seed,
+            };
+            bodies.streams.push((stream, span.clone()));
+            true
+        }
+        _ => false,
+    };
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(0x5eed);
     for (id, pos) in (first..).zip(&positions) {
         let q = orientation(ctx, span.clone(), p, &mut rng)?;
@@ -353,6 +383,7 @@ fn add_particles(
             inertia_body: props.inertia,
             drive: None,
             removed: false,
+            pending,
         };
         check_motion(
             ctx,
@@ -376,6 +407,65 @@ fn add_particles(
         drive: None,
     };
     bodies.census.push(run);
+    Ok(())
+}
+
+/// Hands the groups to insert to the insertion effect: refused when one
+/// is placed without the effect declared, when the effect is declared with
+/// none, or when a group's region (grown by its particles' reach) meets an
+/// obstacle's triangle, as the obstacle stands at the start.
+fn insertion(
+    ctx: &Ctx,
+    table: &Spanned<toml::Table>,
+    effects: &mut Effects,
+    bodies: &Bodies,
+) -> Result<(), SceneError> {
+    let declared = effects.has::<InsertionParams>();
+    if let Some((_, span)) = bodies.streams.first().filter(|_| !declared) {
+        return ctx.err(
+            span.clone(),
+            "this group is inserted during the run: declare `insertion = {}` in [effects]",
+        );
+    }
+    if declared && bodies.streams.is_empty() {
+        let start = table.span().start;
+        let key = key_offset(&ctx.text[start..], InsertionParams::NAME);
+        let at = key.map_or(start, |o| start + o);
+        return ctx.err(
+            at..at,
+            "the insertion effect inserts the groups placed with `kind = \"insert\"`, \
+             and no group is",
+        );
+    }
+    let world = &bodies.world;
+    for (s, span) in &bodies.streams {
+        let reach = crate::simulation::shape_radii(world)[s.shape]
+            + world.materials[s.material].halo.unwrap_or(0.0);
+        let (lo, hi) = s.region.bounds();
+        let (lo, hi) = (lo - reach, hi + reach);
+        for (i, b) in (world.bodies.iter().enumerate()).filter(|(_, b)| b.is_static()) {
+            let mesh = &world.shapes[b.shape];
+            let r = b.rotation();
+            let meets = mesh.triangles.iter().any(|t| {
+                let v = t.map(|k| b.x + r * mesh.vertices[k as usize]);
+                let (tlo, thi) = (v[0].min(v[1]).min(v[2]), v[0].max(v[1]).max(v[2]));
+                tlo.cmple(hi).all() && thi.cmpge(lo).all()
+            });
+            if meets {
+                return ctx.err(
+                    span.clone(),
+                    format!(
+                        "placement.region, grown by the particles' radius and halo \
+                         ({reach:e} m), reaches the obstacle of body id {}: insertion does \
+                         not test against obstacles, so keep the region clear of them",
+                        world.id(i)
+                    ),
+                );
+            }
+        }
+    }
+    let streams = bodies.streams.iter().map(|s| s.0.clone()).collect();
+    effects.set(InsertionParams { streams });
     Ok(())
 }
 
@@ -454,6 +544,7 @@ fn add_obstacle(
         inertia_body: DMat3::ZERO,
         drive: drive.clone().map(Box::new),
         removed: false,
+        pending: false,
     };
     bodies.census.push(Run {
         ids: id..id + 1,

@@ -164,7 +164,7 @@ pub(super) fn placements(
     let count = match p {
         PlacementSpec::Single { .. } => 1.0,
         PlacementSpec::Lattice { count, .. } => count.iter().map(|&c| c as f64).product(),
-        PlacementSpec::Random { count, .. } => *count as f64,
+        PlacementSpec::Random { count, .. } | PlacementSpec::Insert { count, .. } => *count as f64,
     };
     if count > MAX_PARTICLES as f64 {
         return ctx.err(
@@ -178,6 +178,26 @@ pub(super) fn placements(
     }
     match p {
         PlacementSpec::Single { position } => Ok(vec![*position]),
+        PlacementSpec::Insert {
+            count,
+            region,
+            rate,
+            start,
+            ..
+        } => {
+            let refuse = |why: String| ctx.err(span.clone(), format!("placement: {why}"));
+            if let Err(why) = region.check() {
+                return refuse(why);
+            }
+            if let Some(r) = rate.filter(|r| !(r.is_finite() && *r > 0.0)) {
+                return refuse(format!("rate must be positive, got {r:e}"));
+            }
+            if !(start.is_finite() && *start >= 0.0) {
+                return refuse(format!("start must be a time from 0 on, got {start:e}"));
+            }
+            // They wait at the region's centre until they enter.
+            Ok(vec![region.centre().to_array(); *count])
+        }
         PlacementSpec::Lattice {
             count,
             spacing,

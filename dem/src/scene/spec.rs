@@ -164,6 +164,18 @@ pub(super) enum PlacementSpec {
         #[serde(default)]
         seed: u64,
     },
+    /// Particles that enter during the run (the `insertion` effect).
+    Insert {
+        count: usize,
+        region: crate::effects::InsertRegion,
+        /// Particles per second (absent: all at `start`).
+        #[serde(default)]
+        rate: Option<f64>,
+        #[serde(default)]
+        start: f64,
+        #[serde(default)]
+        seed: u64,
+    },
 }
 
 #[derive(Debug, Deserialize)]

@@ -253,7 +253,7 @@ fn warn_fallen(scene: &Scene, sim: &Simulation) {
         .filter(|&i| {
             let b = &w.bodies[i];
             // An outflow's removed particles left where the scene says to.
-            !b.is_static() && !b.removed && b.x.dot(down) > lowest_obstacle
+            !b.is_static() && !b.is_out() && b.x.dot(down) > lowest_obstacle
         })
         .collect();
     if let Some(&first) = fallen.first() {
