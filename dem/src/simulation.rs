@@ -614,9 +614,5 @@ fn section_times(effects: &[Box<dyn Effect>]) -> SectionTimes {
 
 /// Per shape: the largest distance of a vertex from the body's origin.
 pub fn shape_radii(world: &World) -> Vec<f64> {
-    world
-        .shapes
-        .iter()
-        .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
-        .collect()
+    world.shape_radii()
 }

@@ -25,6 +25,13 @@ pub struct World {
 impl World {
     /// Body `i`'s id in the whole scene.
     #[inline]
+    /// Per shape: the largest distance of a vertex from the body's origin.
+    pub fn shape_radii(&self) -> Vec<f64> {
+        (self.shapes.iter())
+            .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
+            .collect()
+    }
+
     /// The index of the body of id `id`, if this world holds it.
     pub fn index_of(&self, id: u32) -> Option<usize> {
         match self.ids.is_empty() {
@@ -111,8 +118,10 @@ impl World {
         let boxes: Vec<(DVec3, DVec3)> = (0..self.bodies.len())
             .map(|i| self.world_bounds(i))
             .collect();
-        let (fixed, mut moving): (Vec<usize>, Vec<usize>) =
-            (0..self.bodies.len()).partition(|&i| self.bodies[i].is_static());
+        // Particles out of the run (waiting to be inserted) enclose nothing.
+        let (fixed, mut moving): (Vec<usize>, Vec<usize>) = (0..self.bodies.len())
+            .filter(|&i| !self.bodies[i].is_out())
+            .partition(|&i| self.bodies[i].is_static());
         let axis = spread_axis(moving.iter().map(|&i| 0.5 * (boxes[i].0 + boxes[i].1)));
         moving.sort_by(|&a, &b| {
             boxes[a].0[axis]

@@ -120,6 +120,8 @@ fn particles_enter_on_schedule_with_room_and_their_energy_is_booked() {
 #[test]
 fn a_crowded_region_makes_particles_wait_and_never_overlap() {
     let mut sim = Simulation::new(&scene(&pour(NARROW, "", 25, 3)));
+    // Waiting at one point, they are no bodies inside others.
+    assert!(sim.world.enclosed_pairs().is_empty());
     let mut total = 0;
     let mut waited = false;
     for _ in 0..100 {

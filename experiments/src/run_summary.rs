@@ -98,7 +98,13 @@ impl RunSummary {
     ) -> RunSummary {
         let secs = times.seconds;
         let t = &sim.totals;
-        let dynamic: Vec<_> = sim.world.bodies.iter().filter(|b| !b.is_static()).collect();
+        // The particles in the run (all of them, if none is yet).
+        let particles = sim.world.bodies.iter().filter(|b| !b.is_static());
+        let present: Vec<_> = particles.clone().filter(|b| !b.is_out()).collect();
+        let dynamic = match present.is_empty() {
+            true => particles.collect(),
+            false => present,
+        };
         let com = dynamic.iter().map(|b| b.x * b.mass).sum::<glam::DVec3>()
             / dynamic.iter().map(|b| b.mass).sum::<f64>();
         let z = dynamic.iter().map(|b| b.x.z);

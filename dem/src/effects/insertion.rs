@@ -189,7 +189,7 @@ impl Declare for InsertionParams {
         let g = setting.effects.get::<GravityParams>().map(|p| p.g());
         Some(Box::new(InsertionEffect {
             streams: self.streams.clone(),
-            radius: crate::simulation::shape_radii(world),
+            radius: world.shape_radii(),
             halo: (world.materials.iter())
                 .map(|m| m.halo.unwrap_or(0.0))
                 .collect(),

@@ -421,6 +421,9 @@ fn insertion(
     bodies: &Bodies,
 ) -> Result<(), SceneError> {
     let declared = effects.has::<InsertionParams>();
+    if !declared && bodies.streams.is_empty() {
+        return Ok(());
+    }
     if let Some((_, span)) = bodies.streams.first().filter(|_| !declared) {
         return ctx.err(
             span.clone(),
@@ -439,8 +442,7 @@ fn insertion(
     }
     let world = &bodies.world;
     for (s, span) in &bodies.streams {
-        let reach = crate::simulation::shape_radii(world)[s.shape]
-            + world.materials[s.material].halo.unwrap_or(0.0);
+        let reach = world.shape_radii()[s.shape] + world.materials[s.material].halo.unwrap_or(0.0);
         let (lo, hi) = s.region.bounds();
         let (lo, hi) = (lo - reach, hi + reach);
         for (i, b) in (world.bodies.iter().enumerate()).filter(|(_, b)| b.is_static()) {
