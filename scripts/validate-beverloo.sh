@@ -20,8 +20,11 @@ if [ $# -eq 0 ]; then
     w=$(basename "$scene" .toml); w=${w#beverloo-}
     $tridem run "$scene" --output "$runs/$w" --overwrite --quiet >/dev/null
   done
+  # What the runs were made by, for the stamp when they are analysed later.
+  echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)" > "$runs/made"
 fi
-python3 - "$runs" > out/validation/beverloo.md <<'PY'
+made=$(cat "$runs/made" 2>/dev/null || echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)")
+/usr/bin/python3 - "$runs" > out/validation/beverloo.md <<'PY'
 import glob, math, os, sys
 import h5py
 import numpy as np
@@ -119,6 +122,6 @@ $tridem chart out/validation/beverloo.csv --x width_mm --y rate_kg_s --by series
   --title "Discharge rate through a slot against its width (Beverloo fit, exponent 3/2)" \
   --output docs/figures/beverloo.svg 2>/dev/null
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
-echo "Measured by \`scripts/validate-beverloo.sh\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d); each rate is the slope of the mass that has left while the twentieth to the fifth of the fill leaves, ± the standard error of the slopes of its three thirds."
+echo "Measured by \`scripts/validate-beverloo.sh\` on $cpu ($(nproc) cores), commit ${made% *}, ${made#* }; each rate is the slope of the mass that has left while the twentieth to the fifth of the fill leaves, ± the standard error of the slopes of its three thirds."
 echo
 cat out/validation/beverloo.md

@@ -21,8 +21,11 @@ if [ $# -eq 0 ]; then
     $tridem run "$scene" --output "$runs/$fr" --overwrite --quiet >/dev/null
     echo $((SECONDS - start)) > "$runs/$fr/seconds"
   done
+  # What the runs were made by, for the stamp when they are analysed later.
+  echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)" > "$runs/made"
 fi
-/usr/bin/env python3 - "$runs" > out/validation/drum.md <<'PY'
+made=$(cat "$runs/made" 2>/dev/null || echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)")
+/usr/bin/python3 - "$runs" > out/validation/drum.md <<'PY'
 import glob, math, os, sys
 import h5py
 import numpy as np
@@ -97,6 +100,6 @@ $tridem chart out/validation/drum.csv --x froude --y angle_deg --by series --err
   --log-x --y-from 20 --title "Dynamic angle of repose against the Froude number (± the bed's fluctuation)" \
   --output docs/figures/drum.svg 2>/dev/null
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
-echo "Measured by \`scripts/validate-drum.sh\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d)."
+echo "Measured by \`scripts/validate-drum.sh\` on $cpu ($(nproc) cores), commit ${made% *}, ${made#* }."
 echo
 cat out/validation/drum.md

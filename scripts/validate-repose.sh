@@ -24,8 +24,12 @@ if [ $# -eq 0 ]; then
     while [ "$(jobs -rp | wc -l)" -ge 2 ]; do sleep 1; done
   done
   wait
+  # What the runs were made by, for the stamp when they are analysed later.
+  echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)" > "$runs/made"
 fi
-/usr/bin/env python3 - "$runs" > out/validation/repose.md <<'PY'
+made=$(cat "$runs/made" 2>/dev/null || echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)")
+# The Debian python, where install-deps.sh puts numpy and h5py.
+/usr/bin/python3 - "$runs" > out/validation/repose.md <<'PY'
 import glob, math, os, sys
 import h5py
 import numpy as np
@@ -33,11 +37,13 @@ import numpy as np
 runs = sys.argv[1]
 RING = (0.2, 0.8)   # the flank: this share of the heap's radius, apex and toe left out
 BINS = 6            # rings across the flank, per quarter
+BACK = 3            # output steps between the heap read and its earlier self
 
-def heap(path):
+def heap(path, back=0):
+    """The grains on the plate at the output step `back` steps before the last."""
     f = h5py.File(path, "r")
     steps = f["steps"]
-    g = steps[str(len(steps) - 1)]
+    g = steps[str(len(steps) - 1 - back)]
     x = g["positions"][()]
     out = (g["removed"][()] == 1) | (g["pending"][()] == 1)
     keep = ~out
@@ -66,42 +72,33 @@ def flank_angles(p):
     return np.array(angles), radius, p[:, 2].max()
 
 rows = []
-for d in sorted(glob.glob(os.path.join(runs, "*")), key=lambda d: float(os.path.basename(d))):
+for d in sorted((os.path.dirname(p) for p in glob.glob(os.path.join(runs, "*", "run.h5"))), key=lambda d: float(os.path.basename(d))):
     mu = float(os.path.basename(d))
     p, out, t = heap(os.path.join(d, "run.h5"))
     a, radius, height = flank_angles(p)
     secs = open(os.path.join(d, "seconds")).read().strip() if os.path.exists(os.path.join(d, "seconds")) else "-"
     cone = math.degrees(math.atan(height / radius))
-    rows.append((mu, a.mean(), a.min(), a.max(), cone, len(p), out, radius, height, secs))
+    # Still creeping? The same measure BACK output steps earlier.
+    early, _, t0 = heap(os.path.join(d, "run.h5"), BACK)
+    drift = a.mean() - flank_angles(early)[0].mean()
+    rows.append((mu, a.mean(), a.min(), a.max(), cone, len(p), out, radius, height, secs, a.std(ddof=1), drift, t - t0))
 
-print("| grain μ | flank angle (°), mean of 4 quarters | min – max | cone angle atan(H/R) (°) | grains on the plate | off the plate | heap radius R (mm) | height H (mm) | seconds |")
-print("|---|---|---|---|---|---|---|---|---|")
+print("| grain μ | flank angle (°), mean of 4 quarters ± sd | their min – max | change over the last (s) | cone angle atan(H/R) (°) | grains on the plate | off the plate | heap radius R (mm) | height H (mm) | seconds |")
+print("|---|---|---|---|---|---|---|---|---|---|")
 for r in rows:
-    print(f"| {r[0]:.1f} | {r[1]:.1f} | {r[2]:.1f} – {r[3]:.1f} | {r[4]:.1f} | {r[5]} | {r[6]} | {1e3*r[7]:.1f} | {1e3*r[8]:.1f} | {r[9]} |")
+    print(f"| {r[0]:.1f} | {r[1]:.1f} ± {r[10]:.1f} | {r[2]:.1f} – {r[3]:.1f} | {r[11]:+.1f}° in {r[12]:.1f} | {r[4]:.1f} | {r[5]} | {r[6]} | {1e3*r[7]:.1f} | {1e3*r[8]:.1f} | {r[9]} |")
 with open("out/validation/repose.csv", "w") as c:
-    c.write("mu,angle_mean,angle_min,angle_max,cone_angle,grains,off,radius_m,height_m,seconds\n")
+    c.write("series,mu,angle_deg,error_deg,angle_min,angle_max,grains,off,radius_m,height_m,seconds\n")
     for r in rows:
-        c.write(",".join(str(v) for v in r) + "\n")
-import matplotlib
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-fig, ax = plt.subplots(figsize=(5.5, 3.8))
-mu = [r[0] for r in rows]
-mean = np.array([r[1] for r in rows])
-ax.errorbar(mu, mean, yerr=[mean - [r[2] for r in rows], [r[3] for r in rows] - mean],
-            fmt="o", capsize=4, label="flank (4 quarters, min–max)")
-ax.plot(mu, [r[4] for r in rows], "s", mfc="none", label="cone atan(H/R)")
-ax.set_xlabel("grain friction μ")
-ax.set_ylabel("angle of repose (°)")
-ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), frameon=False)
-ax.set_xticks(mu)
-fig.tight_layout()
-for ext in ("svg", "png"):
-    fig.savefig(f"docs/figures/repose.{ext}", dpi=120)
+        c.write(f"flank,{r[0]},{r[1]},{r[10]},{r[2]},{r[3]},{r[5]},{r[6]},{r[7]},{r[8]},{r[9]}\n")
+        c.write(f"cone,{r[0]},{r[4]},,,,{r[5]},{r[6]},{r[7]},{r[8]},{r[9]}\n")
 PY
+$tridem chart out/validation/repose.csv --x mu --y angle_deg --by series --error error_deg \
+  --y-from 15 --title "Angle of repose against grain friction: flank (± sd of 4 quarters), cone atan(H/R)" \
+  --output docs/figures/repose.svg 2>/dev/null
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 {
-  echo "Measured by \`scripts/validate-repose.sh\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d); each heap read at its end_time, the flank angle per quarter from the highest grain in each of 6 rings between 0.2 and 0.8 of the heap's radius (the radius holding 95% of its grains)."
+  echo "Measured by \`scripts/validate-repose.sh\` on $cpu ($(nproc) cores), commit ${made% *}, ${made#* }; each heap read at its end_time, the flank angle per quarter from the highest grain in each of 6 rings between 0.2 and 0.8 of the heap's radius (the radius holding 95% of its grains)."
   echo
   cat out/validation/repose.md
 } > out/validation/repose-table.md
