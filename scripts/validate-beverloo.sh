@@ -18,7 +18,9 @@ mkdir -p out/validation docs/figures
 if [ $# -eq 0 ]; then
   for scene in scenes/validation/beverloo-*.toml; do
     w=$(basename "$scene" .toml); w=${w#beverloo-}
+    start=$SECONDS
     $tridem run "$scene" --output "$runs/$w" --overwrite --quiet >/dev/null
+    echo $((SECONDS - start)) > "$runs/$w/seconds"
   done
   # What the runs were made by, for the stamp when they are analysed later.
   echo "$(git rev-parse --short HEAD) $(date -u +%Y-%m-%d)" > "$runs/made"
@@ -61,7 +63,9 @@ for d in sorted(glob.glob(os.path.join(runs, "*", "run.h5"))):
     err = np.std(parts, ddof=1) / math.sqrt(PARTS)
     settled = t <= OPEN + 1e-12
     rho_b = bed[settled][-1] / BED
-    rows.append((width, W, err, rho_b, grains))
+    sec = os.path.join(os.path.dirname(d), "seconds")
+    secs = open(sec).read().strip() if os.path.exists(sec) else "-"
+    rows.append((width, W, err, rho_b, grains, t[-1], secs))
 
 if not rows:
     sys.exit(f"no runs under {runs}")
@@ -94,6 +98,19 @@ for D0 in np.linspace(0.0, 0.98 * D.min(), 400):
     if best is None or res < best[0]:
         best = (res, n, D0)
 _, n_free, D0 = best
+# The free exponent's uncertainty: the fit repeated on rates drawn within
+# their errors (a parametric bootstrap, fixed seed).
+rng = np.random.default_rng(1)
+draws = []
+for _ in range(300):
+    Wd = np.maximum(W + E * rng.standard_normal(len(W)), 1e-9)
+    fits = []
+    for D0d in np.linspace(0.0, 0.98 * D.min(), 100):
+        X = np.log(D - D0d)
+        nd, lc = np.polyfit(X, np.log(Wd), 1)
+        fits.append((np.sum((np.log(Wd) - (nd * X + lc)) ** 2), nd))
+    draws.append(min(fits)[1])
+s_n = float(np.std(draws, ddof=1))
 pred = (a * (D - k * d)) ** 1.5
 
 with open("out/validation/beverloo.csv", "w") as f:
@@ -103,10 +120,10 @@ with open("out/validation/beverloo.csv", "w") as f:
     for Di in np.linspace(max(k * d, 0.8 * D.min()), D.max() * 1.05, 40):
         f.write(f"{1000*Di:.2f},{(a * (Di - k * d)) ** 1.5:.5f},,Beverloo fit\n")
 
-print("| slot width D (mm) | D / d | discharge rate W (kg/s) | Beverloo fit (kg/s) | fit − measured, in errors |")
-print("|---|---|---|---|---|")
-for Di, Wi, Ei, Pi in zip(D, W, E, pred):
-    print(f"| {1000*Di:.0f} | {Di/d:.2f} | {Wi:.4f} ± {Ei:.4f} | {Pi:.4f} | {(Pi-Wi)/Ei:+.1f} |")
+print("| slot width D (mm) | D / d | discharge rate W (kg/s) | Beverloo fit (kg/s) | fit − measured, in errors | grains | simulated (s) | run (s) |")
+print("|---|---|---|---|---|---|---|---|")
+for Di, Wi, Ei, Pi, r in zip(D, W, E, pred, rows):
+    print(f"| {1000*Di:.0f} | {Di/d:.2f} | {Wi:.4f} ± {Ei:.4f} | {Pi:.4f} | {(Pi-Wi)/Ei:+.1f} | {len(r[4])} | {r[5]:.2f} | {r[6]} |")
 print()
 print(f"Grains: d = {1000*d:.2f} mm (volume-equivalent diameter), ρ_b = {rho_b:.0f} kg/m³ "
       f"(the settled bed, `bed` probe, mean of the runs), L = {1000*L:.0f} mm.")
@@ -115,7 +132,8 @@ chi2 = float(np.sum(((pred - W) / E) ** 2))
 print(f"Fitted with the exponent 3/2 (W^(2/3) linear in D, weighted): "
       f"C = {C:.3f} ± {sC:.3f}, k = {k:.2f} ± {sk:.2f}; "
       f"χ² = {chi2:.1f} for {len(D) - 2} degrees of freedom. "
-      f"With the exponent free (W = c (D − D0)^n): n = {n_free:.2f}, D0 = {1000*D0:.1f} mm "
+      f"With the exponent free (W = c (D − D0)^n): n = {n_free:.2f} ± {s_n:.2f} "
+      f"(the spread of 300 refits to rates drawn within their errors), D0 = {1000*D0:.1f} mm "
       f"({D0/d:.2f} d).")
 PY
 $tridem chart out/validation/beverloo.csv --x width_mm --y rate_kg_s --by series --error error_kg_s \
