@@ -43,7 +43,9 @@ def series(path):
     steps = sorted(f["steps"].keys(), key=int)
     t = np.array([f["steps"][k].attrs["time"] for k in steps])
     probes = [f["steps"][k]["probes"].attrs for k in steps]
-    past = np.array([p["outlet_mass_past"] for p in probes])
+    # What has left: past the outlet plane and still falling, or taken
+    # out of the run below it by the outflow.
+    past = np.array([p["outlet_mass_past"] + p.get("outflow_mass", 0.0) for p in probes])
     bed = np.array([p["bed_mass"] for p in probes])
     mass = f["bodies/mass"][:]
     grains = mass[mass > 0]

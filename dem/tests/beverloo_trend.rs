@@ -109,7 +109,7 @@ const SAMPLES: usize = 5;
 
 /// Beverloo's slot law, W ∝ (D − k d)^(3/2) with k ≈ 1.2-3 for grains of
 /// diameter d = 7.1 mm, predicts 2.3-8 times the rate through 51 mm as
-/// through 30 mm (docs/validation.md fits k = 1.7 on the full scenes: 3.2).
+/// through 30 mm (the fit of docs/validation.md on the full scenes: about 3).
 #[test]
 fn a_wider_slot_discharges_faster() {
     let narrow = discharge_rate(0.030);
