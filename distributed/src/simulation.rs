@@ -980,11 +980,27 @@ impl<'c> DistributedSimulation<'c> {
             .map(|(c, place)| ContactRecord::new(c, place as usize))
             .collect();
         let contacts = gather_v(self.comm, 0, &contacts);
-        let books = energy_books(&l.world, &self.ctx, &self.effects);
+        let books = self.gather_books();
+        let (mut contacts, books) = (contacts?, books?);
+        contacts.sort_unstable_by_key(ContactRecord::order);
+        Some(FrameParts { contacts, books })
+    }
+
+    /// The effects' measures (a probe's count and mass, what an outflow
+    /// took out, what an insertion brought in), summed over the ranks in
+    /// rank order, on rank 0 (collective).
+    pub fn measures(&self) -> Option<Vec<(String, f64)>> {
+        Some(self.gather_books()?.rounded().measures)
+    }
+
+    /// The energy books and measures of every rank, merged on rank 0
+    /// (collective).
+    fn gather_books(&self) -> Option<EnergyBooks> {
+        let books = energy_books(&self.local.world, &self.ctx, &self.effects);
         let numbers = books.numbers();
         let parts = gather_v(self.comm, 0, &numbers);
         let counts = gather_v(self.comm, 0, &[numbers.len() as u64]);
-        let (mut contacts, parts, counts) = (contacts?, parts?, counts?);
+        let (parts, counts) = (parts?, counts?);
         let mut merged = EnergyBooks {
             effects: books
                 .effects
@@ -1003,11 +1019,7 @@ impl<'c> DistributedSimulation<'c> {
             merged.merge(&books.from_numbers(&parts[at..at + n as usize]));
             at += n as usize;
         }
-        contacts.sort_unstable_by_key(ContactRecord::order);
-        Some(FrameParts {
-            contacts,
-            books: merged,
-        })
+        Some(merged)
     }
 
     /// Body pairs whose surfaces cross in the last evaluation (a contact

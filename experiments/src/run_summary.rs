@@ -44,6 +44,8 @@ pub struct RunSummary {
     /// Seconds per section of the step pipeline, then checkpoints and the
     /// rest (output, the finiteness check, the progress bar), in table order.
     pub section_seconds: serde_json::Map<String, serde_json::Value>,
+    /// The effects' measures at the end (probes, outflow, insertion), by name.
+    pub measures: serde_json::Map<String, serde_json::Value>,
     /// The sections as the table shows them: label and seconds.
     #[serde(skip)]
     rows: Vec<(String, f64)>,
@@ -57,6 +59,23 @@ fn ratio(a: f64, b: f64) -> f64 {
         a / b
     } else {
         0.0
+    }
+}
+
+/// The effects' measures as JSON, by name.
+pub fn measure_map(measures: Vec<(String, f64)>) -> serde_json::Map<String, serde_json::Value> {
+    measures.into_iter().map(|(n, v)| (n, v.into())).collect()
+}
+
+/// The effects' measures at the end of the run, one per line (none
+/// printed when the scene declares no effect that measures).
+pub fn print_measures(measures: &serde_json::Map<String, serde_json::Value>) {
+    if measures.is_empty() {
+        return;
+    }
+    println!("measures at the end");
+    for (name, v) in measures {
+        println!("  {name:<28} {}", v.as_f64().unwrap_or(f64::NAN));
     }
 }
 
@@ -155,6 +174,7 @@ impl RunSummary {
             stepping_seconds: stepping,
             narrow_phase_busy_thread_seconds: sim.timings.detection.narrow_phase_busy,
             section_seconds,
+            measures: measure_map(sim.energies().measures),
             rows,
             output: output.map(Path::to_path_buf),
         }
@@ -194,6 +214,7 @@ impl RunSummary {
         for (name, s) in &self.rows {
             println!("  {name:<20} {s:>8.3}  {:>4.1}%", 100.0 * s / secs);
         }
+        print_measures(&self.measures);
         if let Some(dir) = &self.output {
             print_output_lines(dir, self.last_step);
         }

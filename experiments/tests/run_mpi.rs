@@ -87,7 +87,7 @@ fn same_as_one_process(
     steps: &str,
     least_contacts: u64,
     splits: &[(usize, Vec<&str>)],
-) {
+) -> String {
     let dir = temp(name);
     let one = dir.join("one");
     let base = [
@@ -102,6 +102,7 @@ fn same_as_one_process(
         &[&base[..], &["--output", one.to_str().unwrap()]].concat(),
     );
     assert_eq!(r.code, 0, "{}", r.stderr);
+    let one_out = r.stdout.clone();
     let contacts = r
         .stdout
         .lines()
@@ -131,8 +132,38 @@ fn same_as_one_process(
                 "{ctx}: {file} differs from one process's"
             );
         }
+        assert_eq!(
+            measures(&r.stdout),
+            measures(&one_out),
+            "{ctx}: the summary's measures differ from one process's"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
+    one_out
+}
+
+/// The summary's "measures at the end": (name, value) lines.
+fn measures(stdout: &str) -> Vec<(String, f64)> {
+    stdout
+        .lines()
+        .skip_while(|l| *l != "measures at the end")
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .map(|l| {
+            let mut w = l.split_whitespace();
+            let name = w.next().unwrap().to_string();
+            (name, w.next().unwrap().parse().unwrap())
+        })
+        .collect()
+}
+
+/// The measure `name` in a summary, which must show it.
+fn measure(stdout: &str, name: &str) -> f64 {
+    let m = measures(stdout);
+    m.iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("no measure {name} in {m:?}"))
+        .1
 }
 
 #[test]
@@ -259,7 +290,12 @@ fn an_outflow_splits_and_resumes_to_the_bit() {
         (20..100).contains(&removed),
         "{removed} grains out by step 2,500"
     );
-    same_as_one_process("outflow", &file, "4000", 700, &splits);
+    let one = same_as_one_process("outflow", &file, "4000", 700, &splits);
+    let out = measure(&one, "outflow_count");
+    assert!(
+        out > removed as f64,
+        "{out} out by step 4,000, {removed} by 2,500"
+    );
     resumed_across_rank_counts("resume-outflow", &file, &[(2, 2500), (1, 1500)]);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -291,7 +327,9 @@ velocity = [0.0, 0.0, -0.5]
         (2, vec!["--partitioner", "rcb", "--repartition-every", "7"]),
         (3, vec!["--partitioner", "rcb", "--repartition-every", "1"]),
     ];
-    same_as_one_process("insertion", &file, "3000", 700, &splits);
+    let one = same_as_one_process("insertion", &file, "3000", 700, &splits);
+    // All 40 are due by step 2,000 and find room in the box.
+    assert_eq!(measure(&one, "inserted_count"), 40.0);
     // At step 1,000 (t = 0.05 s) about half the grains still wait.
     resumed_across_rank_counts("resume-insertion", &file, &[(2, 1000), (1, 800), (3, 700)]);
     let _ = std::fs::remove_dir_all(&dir);

@@ -433,7 +433,8 @@ fn summary(
     ];
     let mut stats = [0u64; 2];
     comm.all_reduce_into(&mine[..], &mut stats[..], SystemOperation::sum());
-    let (Some(ranks), Some(rss)) = (ranks, rss) else {
+    let measures = dist.measures();
+    let (Some(ranks), Some(rss), Some(measures)) = (ranks, rss, measures) else {
         return;
     };
     let per_step = |v: f64| v / steps.max(1) as f64;
@@ -467,6 +468,7 @@ fn summary(
         "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
         "peak_rss_bytes": min_mean_max(&rss_f),
         "per_step_over_ranks": table,
+        "measures": crate::run_summary::measure_map(measures),
     });
     if args.json {
         println!("{summary}");
@@ -508,6 +510,9 @@ fn summary(
             f("mean"),
             f("max")
         );
+    }
+    if let Some(m) = summary["measures"].as_object() {
+        crate::run_summary::print_measures(m);
     }
     if let Some(dir) = &args.output {
         crate::run_summary::print_output_lines(dir, dist.step_number());
