@@ -4,6 +4,8 @@
 //! heap's flank read in four quarters) is `scripts/validate-repose.sh`
 //! (docs/validation.md); this is its scene with a third of the grains,
 //! poured faster, at two frictions far apart.
+mod common;
+
 use dem::scene::Scene;
 use dem::simulation::Simulation;
 use std::path::Path;
@@ -17,6 +19,7 @@ const RATE: f64 = 150.0;
 /// the last grain is due, when the heap stands still.
 fn pour(mu: f64) -> Scene {
     let end = GRAINS as f64 / RATE + 0.7;
+    let materials = common::grains_and_walls(2.5e-4, mu, 1.0);
     let text = format!(
         r#"
         [simulation]
@@ -29,20 +32,7 @@ fn pour(mu: f64) -> Scene {
         rotation = {{}}
         insertion = {{}}
         outflow = {{ planes = [{{ point = [0.0, 0.0, -0.02], normal = [0.0, 0.0, -1.0] }}] }}
-        [[materials]]
-        name = "grain"
-        density = 2500.0
-        stiffness = 50000.0
-        restitution = 0.4
-        halo = 2.5e-4
-        friction = {mu}
-        [[materials]]
-        name = "plate"
-        density = 7800.0
-        stiffness = 500000.0
-        restitution = 0.4
-        halo = 2.5e-4
-        friction = 1.0
+        {materials}
         [[particles]]
         material = "grain"
         shape = {{ kind = "hull", triangles = 20, radius = 0.005, seed = 11 }}
@@ -50,7 +40,7 @@ fn pour(mu: f64) -> Scene {
         orientation = "random"
         velocity = [0.0, 0.0, -0.8]
         [[obstacles]]
-        material = "plate"
+        material = "wall"
         shape = {{ kind = "box", size = [0.2, 0.2, 0.01] }}
         position = [0.0, 0.0, -0.005]
         "#
