@@ -372,10 +372,9 @@ impl<'c> DistributedSimulation<'c> {
             self.repartition()?;
         }
         let start = Instant::now();
-        let moved = self.kick_and_drift();
+        let (moved, finite) = self.kick_and_drift();
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let finite = (self.local.owned.iter()).all(|&i| self.local.world.bodies[i].is_finite());
         let h = self.dt;
         let end = (self.local.world.time + h, self.local.world.step + 1);
         let due = insertion_due(&self.local.world, &self.ctx, &self.effects, end.0, end.1);
@@ -466,17 +465,20 @@ impl<'c> DistributedSimulation<'c> {
 
     /// Owners: half kick and drift; every rank: the moving walls to their
     /// place at the step's end. Returns the farthest any point of an owned
-    /// body or a moving wall moved.
-    fn kick_and_drift(&mut self) -> f64 {
+    /// body or a moving wall moved, and whether every owned body's state is
+    /// finite (checked here, where the drift touches it last).
+    fn kick_and_drift(&mut self) -> (f64, bool) {
         let (h, rot) = (self.dt, self.rotation);
         let (force, torque) = self.forces.all();
         let mut moved: f64 = 0.0;
+        let mut finite = true;
         for &i in &self.ctx.bodies {
             let b = &mut self.local.world.bodies[i];
             half_kick(b, force[i], torque[i], h, rot);
             let before = (b.x, b.q);
             drift(b, h, rot);
             moved = moved.max(travel_bound(before, b, self.shape_radius[b.shape]));
+            finite &= b.is_finite();
         }
         let t_next = self.local.world.time + h;
         for (id, body, _) in self.obstacles.iter_mut().filter(|o| o.1.drive.is_some()) {
@@ -487,7 +489,7 @@ impl<'c> DistributedSimulation<'c> {
                 self.local.world.bodies[i].follow_drive(t_next);
             }
         }
-        moved
+        (moved, finite)
     }
 
     /// Contacts and forces of the current state, with the lists drawn anew
