@@ -173,6 +173,13 @@ impl Simulation {
         v
     }
 
+    /// Whether an effect takes particles out of the run (an outflow): the
+    /// scene then says where particles leave, and one below every obstacle
+    /// may be on its way there.
+    pub fn removes_particles(&self) -> bool {
+        self.effects.iter().any(|e| e.removes_particles())
+    }
+
     fn evaluate_forces(&mut self) {
         self.forces.reset(self.world.bodies.len());
         self.ctx.stats = StepStats::default();

@@ -225,8 +225,14 @@ fn start(args: &RunArgs, scene: &Scene) -> CliResult<(Simulation, u64)> {
 
 /// Warns of particles that ended below every obstacle, along gravity: they
 /// fell through a wall (too fast for the step, or too soft a contact) or
-/// out of the scene, and what they do no longer means anything.
+/// out of the scene, and what they do no longer means anything. Not when an
+/// effect takes particles out: the scene then says where particles leave,
+/// and those below every obstacle are falling towards it (a silo's outflow
+/// plane under its floor).
 fn warn_fallen(scene: &Scene, sim: &Simulation) {
+    if sim.removes_particles() {
+        return;
+    }
     let Some(down) = scene
         .effects
         .get::<dem::effects::GravityParams>()
@@ -252,7 +258,6 @@ fn warn_fallen(scene: &Scene, sim: &Simulation) {
     let fallen: Vec<usize> = (0..w.bodies.len())
         .filter(|&i| {
             let b = &w.bodies[i];
-            // An outflow's removed particles left where the scene says to.
             !b.is_static() && !b.is_out() && b.x.dot(down) > lowest_obstacle
         })
         .collect();
