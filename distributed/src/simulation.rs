@@ -671,12 +671,17 @@ impl<'c> DistributedSimulation<'c> {
     fn redraw(&mut self) {
         let l = &self.local;
         let pad = 0.5 * self.settings.skin;
+        // Particles out of the run touch nothing: they neither reach nor go
+        // as ghosts (an insertion redraws the lists at once).
+        let present: Vec<usize> = (l.owned.iter().copied())
+            .filter(|&i| !l.world.bodies[i].is_out())
+            .collect();
         let drawn = ghosts::draw(
             self.comm,
             &l.world,
             &self.shape_radius,
             &l.halos,
-            &l.owned,
+            &present,
             pad,
         );
         // Streams in increasing id: each neighbour's ghosts, the obstacles
@@ -754,6 +759,8 @@ impl<'c> DistributedSimulation<'c> {
         let work: Vec<[f64; 2]> = l.owned.iter().map(|&i| l.work[i]).collect();
         let (steps, busy) = self.since_partition;
         let weights = crate::weights::of(self.settings.weights, &triangles, &work, steps, busy);
+        let out: Vec<bool> = l.owned.iter().map(|&i| w.bodies[i].is_out()).collect();
+        let weights = crate::weights::held(weights, &out);
         let items: Vec<Item> = l
             .owned
             .iter()

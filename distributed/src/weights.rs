@@ -10,6 +10,14 @@
 //!   rank that runs slower per pair (its cache, its core) sheds particles.
 //!
 //! The first partitioning, with no interval behind it, weighs triangles.
+//!
+//! A particle out of the run (waiting to be inserted, or taken out by an
+//! outflow) costs nothing per step: it weighs [`OUT_SHARE`] of what it
+//! would, so that it does not pull a cut, yet a partition of particles all
+//! out (an insertion scene at its start) still has weights to split.
+
+/// What a particle out of the run weighs, as a share of its weight in it.
+pub const OUT_SHARE: f64 = 1e-3;
 
 /// The cost model of `pairs`, in nanoseconds: per body and step (the kicks,
 /// the drift, moving its triangles, the broad phase), per body pair examined
@@ -91,6 +99,15 @@ pub fn of(
         .collect()
 }
 
+/// [`of`]'s weights with those of the particles out of the run (`out`)
+/// scaled by [`OUT_SHARE`].
+pub fn held(mut weights: Vec<f64>, out: &[bool]) -> Vec<f64> {
+    for (w, _) in weights.iter_mut().zip(out).filter(|(_, &o)| o) {
+        *w *= OUT_SHARE;
+    }
+    weights
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -126,6 +143,25 @@ mod tests {
         assert!((t[1] / t[0] - p[1] / p[0]).abs() < 1e-9);
         assert_eq!(of(Weights::Pairs, &tri, &work, 0, 0.0), tri.to_vec());
         assert_eq!(of(Weights::Triangles, &tri, &work, 10, 1.0), tri.to_vec());
+    }
+
+    /// Particles out of the run weigh a thousandth of the same particles in
+    /// it, under every weighing; those in it keep their weight.
+    #[test]
+    fn particles_out_of_the_run_weigh_next_to_nothing() {
+        let tri = [20.0, 20.0, 2000.0];
+        let work = [[5.0, 90.0], [5.0, 90.0], [0.0, 0.0]];
+        let out = [false, true, true];
+        for &(w, _) in Weights::ALL {
+            for steps in [0, 10] {
+                let full = of(w, &tri, &work, steps, 1e-3);
+                let h = held(full.clone(), &out);
+                assert_eq!(h[0], full[0], "{w:?}");
+                for k in 1..3 {
+                    assert!(h[k] > 0.0 && h[k] == full[k] * OUT_SHARE, "{w:?} {k}");
+                }
+            }
+        }
     }
 
     /// A rank's modelled cost is its particles' `pairs` weights summed.

@@ -335,6 +335,70 @@ velocity = [0.0, 0.0, -0.5]
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Grains that wait to be inserted touch nothing: before the first enters,
+/// none goes to another rank as a ghost, though two streams wait 8 mm apart,
+/// one on each rank, closer than a grain's size.
+#[test]
+fn particles_out_of_the_run_are_never_ghosts() {
+    let dir = temp("waiting");
+    let text = std::fs::read_to_string(scene("hopper.toml")).unwrap();
+    let text = text.replacen("rotation = {}\n", "rotation = {}\ninsertion = {}\n", 1);
+    // The hopper's own grains replaced by 2 x 20 that enter from t = 1 s on
+    // and wait at their regions' centres, x = -4 mm and 4 mm.
+    let start = text.find("[[particles]]").unwrap();
+    let end = start + text[start..].find("[[obstacles]]").unwrap();
+    let stream = |lo: f64| {
+        format!(
+            "[[particles]]\nmaterial = \"grain\"\n\
+             shape = {{ kind = \"hull\", triangles = 20, radius = 0.005, seed = 11 }}\n\
+             placement = {{ kind = \"insert\", count = 20, region = {{ kind = \"box\", \
+             lo = [{lo}, -0.01, 0.17], hi = [{}, 0.01, 0.19] }}, rate = 400.0, start = 1.0, \
+             seed = 5 }}\n\n",
+            lo + 0.02
+        )
+    };
+    let wait = stream(-0.014) + &stream(-0.006);
+    let text = format!("{}{wait}{}", &text[..start], &text[end..]);
+    let file = dir.join("waiting.toml");
+    std::fs::write(&file, text).unwrap();
+    let metrics = dir.join("m.jsonl");
+    let r = run(
+        2,
+        &[
+            "run",
+            file.to_str().unwrap(),
+            "--steps",
+            "40",
+            "--quiet",
+            "--partitioner",
+            "rcb",
+            "--repartition-every",
+            "10",
+            "--metrics",
+            metrics.to_str().unwrap(),
+            "--metrics-every",
+            "10",
+        ],
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&metrics)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 4);
+    for l in &lines {
+        assert_eq!(l["sum"]["owned_bodies"], 40.0, "{l}");
+        let per_rank = l["per_rank"]["owned_bodies"].as_array().unwrap();
+        assert!(
+            per_rank.iter().all(|n| n.as_f64() > Some(0.0)),
+            "both ranks hold some: {l}"
+        );
+        assert_eq!(l["sum"]["ghosts_sent"], 0.0, "{l}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
     let splits = [
