@@ -10,6 +10,7 @@
 //! [`StepContext`].
 
 mod declare;
+pub mod places;
 
 /// Declares each effect's file and registers its parameter type in
 /// [`KINDS`], in the order given: an effect is its file plus its line in

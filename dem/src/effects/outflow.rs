@@ -21,6 +21,7 @@
 //!   gravity's potential −m g·x at removal, as energy the effect stores: the
 //!   books still balance when particles leave with their energy.
 
+use super::places::{Cuboid, HalfSpace};
 use super::{Books, Declare, Effect, Forces, Setting, StepContext};
 use crate::body::Body;
 use crate::effects::GravityParams;
@@ -63,19 +64,10 @@ impl Declare for OutflowParams {
             return Err("declare a plane (`planes`) or a box (`inside`) to leave".into());
         }
         for (k, p) in self.planes.iter().enumerate() {
-            let (x, n) = (DVec3::from_array(p.point), DVec3::from_array(p.normal));
-            if !x.is_finite() || !n.is_finite() || n == DVec3::ZERO {
-                return Err(format!(
-                    "plane {}: point and normal must be finite, the normal not zero",
-                    k + 1
-                ));
-            }
+            HalfSpace::of(p.point, p.normal).map_err(|why| format!("plane {}: {why}", k + 1))?;
         }
         if let Some(b) = &self.inside {
-            let (lo, hi) = (DVec3::from_array(b.lo), DVec3::from_array(b.hi));
-            if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
-                return Err("inside: lo and hi must be finite, lo ≤ hi on every axis".into());
-            }
+            Cuboid::of(b.lo, b.hi).map_err(|why| format!("inside: {why}"))?;
         }
         Ok(())
     }
@@ -83,18 +75,21 @@ impl Declare for OutflowParams {
         let g = setting.effects.get::<GravityParams>().map(|p| p.g());
         Some(Box::new(OutflowEffect {
             planes: (self.planes.iter())
-                .map(|p| (DVec3::from_array(p.point), DVec3::from_array(p.normal)))
-                .collect(),
-            inside: (self.inside.as_ref())
-                .map(|b| (DVec3::from_array(b.lo), DVec3::from_array(b.hi))),
+                .map(|p| HalfSpace::of(p.point, p.normal))
+                .collect::<Result<_, _>>()
+                .ok()?,
+            inside: match &self.inside {
+                Some(b) => Some(Cuboid::of(b.lo, b.hi).ok()?),
+                None => None,
+            },
             g: g.unwrap_or(DVec3::ZERO),
         }))
     }
 }
 
 pub struct OutflowEffect {
-    planes: Vec<(DVec3, DVec3)>,
-    inside: Option<(DVec3, DVec3)>,
+    planes: Vec<HalfSpace>,
+    inside: Option<Cuboid>,
     /// Gravity's acceleration (zero without gravity): the potential energy
     /// a particle carries out.
     g: DVec3,
@@ -112,9 +107,7 @@ impl Effect for OutflowEffect {
     }
 
     fn removes(&self, b: &Body) -> bool {
-        let past = |&(p, n): &(DVec3, DVec3)| (b.x - p).dot(n) > 0.0;
-        let outside = |&(lo, hi): &(DVec3, DVec3)| !(b.x.cmpge(lo).all() && b.x.cmple(hi).all());
-        self.planes.iter().any(past) || self.inside.as_ref().is_some_and(outside)
+        self.planes.iter().any(|p| p.holds(b.x)) || self.inside.is_some_and(|c| !c.holds(b.x))
     }
 
     /// The energy the removed particles `ctx.removed` carried out, stored.

@@ -15,10 +15,10 @@
 //! run split across ranks measures the same bits as one process. A probe
 //! adds no force: it reads the state, at output steps only.
 
+use super::places::{Cuboid, HalfSpace};
 use super::{Declare, Effect, Forces, Setting, StepContext};
 use crate::ledger::ExactSum;
 use crate::world::World;
-use glam::DVec3;
 use serde::Deserialize;
 
 /// `probes = { regions = [{ name, lo, hi }], planes = [{ name, point, normal }] }`.
@@ -71,34 +71,28 @@ impl Declare for ProbesParams {
             }
         }
         for r in &self.regions {
-            let (lo, hi) = (DVec3::from_array(r.lo), DVec3::from_array(r.hi));
-            if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
-                return Err(format!(
-                    "region `{}`: lo and hi must be finite, lo ≤ hi on every axis",
-                    r.name
-                ));
-            }
+            Cuboid::of(r.lo, r.hi).map_err(|why| format!("region `{}`: {why}", r.name))?;
         }
         for p in &self.planes {
-            let (x, n) = (DVec3::from_array(p.point), DVec3::from_array(p.normal));
-            if !x.is_finite() || !n.is_finite() || n == DVec3::ZERO {
-                return Err(format!(
-                    "plane `{}`: point and normal must be finite, the normal not zero",
-                    p.name
-                ));
-            }
+            HalfSpace::of(p.point, p.normal).map_err(|why| format!("plane `{}`: {why}", p.name))?;
         }
         Ok(())
     }
     fn build(&self, _: &Setting) -> Option<Box<dyn Effect>> {
         Some(Box::new(ProbesEffect {
-            params: self.clone(),
+            regions: (self.regions.iter())
+                .map(|r| Some((r.name.clone(), Cuboid::of(r.lo, r.hi).ok()?)))
+                .collect::<Option<_>>()?,
+            planes: (self.planes.iter())
+                .map(|p| Some((p.name.clone(), HalfSpace::of(p.point, p.normal).ok()?)))
+                .collect::<Option<_>>()?,
         }))
     }
 }
 
 pub struct ProbesEffect {
-    params: ProbesParams,
+    regions: Vec<(String, Cuboid)>,
+    planes: Vec<(String, HalfSpace)>,
 }
 
 impl Effect for ProbesEffect {
@@ -112,12 +106,11 @@ impl Effect for ProbesEffect {
     /// `<name>_count_past`, `_mass_past`; over the particles `ctx.bodies`.
     fn measures(&self, world: &World, ctx: &StepContext) -> Vec<(String, ExactSum)> {
         let mut out = Vec::new();
-        for r in &self.params.regions {
-            let (lo, hi) = (DVec3::from_array(r.lo), DVec3::from_array(r.hi));
+        for (name, region) in &self.regions {
             let mut sums: [ExactSum; 5] = Default::default();
             for &i in &ctx.bodies {
                 let b = &world.bodies[i];
-                if b.x.cmpge(lo).all() && b.x.cmple(hi).all() {
+                if region.holds(b.x) {
                     let p = b.v * b.mass;
                     for (s, x) in sums.iter_mut().zip([1.0, b.mass, p.x, p.y, p.z]) {
                         s.add(x);
@@ -129,21 +122,20 @@ impl Effect for ProbesEffect {
                 names
                     .iter()
                     .zip(sums)
-                    .map(|(n, s)| (format!("{}_{n}", r.name), s)),
+                    .map(|(n, s)| (format!("{name}_{n}"), s)),
             );
         }
-        for p in &self.params.planes {
-            let (x, n) = (DVec3::from_array(p.point), DVec3::from_array(p.normal));
+        for (name, plane) in &self.planes {
             let (mut count, mut mass) = (ExactSum::default(), ExactSum::default());
             for &i in &ctx.bodies {
                 let b = &world.bodies[i];
-                if (b.x - x).dot(n) > 0.0 {
+                if plane.holds(b.x) {
                     count.add(1.0);
                     mass.add(b.mass);
                 }
             }
-            out.push((format!("{}_count_past", p.name), count));
-            out.push((format!("{}_mass_past", p.name), mass));
+            out.push((format!("{name}_count_past"), count));
+            out.push((format!("{name}_mass_past"), mass));
         }
         out
     }
