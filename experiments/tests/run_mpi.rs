@@ -48,6 +48,34 @@ fn run(ranks: usize, args: &[&str]) -> Ran {
     finish(out, Duration::from_secs(600))
 }
 
+/// Runs `scene_file` quietly on `ranks` with `args`, a metrics line every
+/// 10 steps into `dir`; the run, once it succeeded, and its metrics lines.
+fn run_with_metrics(
+    ranks: usize,
+    dir: &Path,
+    scene_file: &Path,
+    args: &[&str],
+) -> (Ran, Vec<serde_json::Value>) {
+    let metrics = dir.join("m.jsonl");
+    let base = [
+        "run",
+        scene_file.to_str().unwrap(),
+        "--quiet",
+        "--metrics",
+        metrics.to_str().unwrap(),
+        "--metrics-every",
+        "10",
+    ];
+    let r = run(ranks, &[&base[..], args].concat());
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let lines = std::fs::read_to_string(&metrics)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    (r, lines)
+}
+
 /// The ranks stopped with one message between them.
 fn assert_one_error(r: &Ran) {
     let messages = r.stderr.matches("tridem: error:").count();
@@ -361,31 +389,15 @@ fn particles_out_of_the_run_are_never_ghosts() {
     let text = format!("{}{wait}{}", &text[..start], &text[end..]);
     let file = dir.join("waiting.toml");
     std::fs::write(&file, text).unwrap();
-    let metrics = dir.join("m.jsonl");
-    let r = run(
-        2,
-        &[
-            "run",
-            file.to_str().unwrap(),
-            "--steps",
-            "40",
-            "--quiet",
-            "--partitioner",
-            "rcb",
-            "--repartition-every",
-            "10",
-            "--metrics",
-            metrics.to_str().unwrap(),
-            "--metrics-every",
-            "10",
-        ],
-    );
-    assert_eq!(r.code, 0, "{}", r.stderr);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&metrics)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let args = [
+        "--steps",
+        "40",
+        "--partitioner",
+        "rcb",
+        "--repartition-every",
+        "10",
+    ];
+    let (_, lines) = run_with_metrics(2, &dir, &file, &args);
     assert_eq!(lines.len(), 4);
     for l in &lines {
         assert_eq!(l["sum"]["owned_bodies"], 40.0, "{l}");
@@ -622,29 +634,8 @@ fn a_full_disk_names_the_file() {
 #[test]
 fn metrics_count_every_rank_and_every_body_once() {
     let dir = temp("metrics");
-    let file = dir.join("m.jsonl");
-    let r = run(
-        3,
-        &[
-            "run",
-            scene("silo-1000.toml").to_str().unwrap(),
-            "--steps",
-            "200",
-            "--quiet",
-            "--repartition-every",
-            "50",
-            "--metrics",
-            file.to_str().unwrap(),
-            "--metrics-every",
-            "10",
-        ],
-    );
-    assert_eq!(r.code, 0, "{}", r.stderr);
-    let lines: Vec<serde_json::Value> = std::fs::read_to_string(&file)
-        .unwrap()
-        .lines()
-        .map(|l| serde_json::from_str(l).unwrap())
-        .collect();
+    let args = ["--steps", "200", "--repartition-every", "50"];
+    let (r, lines) = run_with_metrics(3, &dir, &scene("silo-1000.toml"), &args);
     assert_eq!(lines.len(), 20);
     let mut migrated = 0.0;
     for l in &lines {
