@@ -411,6 +411,47 @@ fn particles_out_of_the_run_are_never_ghosts() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Five planes of four grains each, falling free: the weighted median lies
+/// in the middle plane, so an even split must cut through it. Every
+/// partitioner splits the 20 grains 10 / 10 (metis, a graph, within one),
+/// at the start and at every repartitioning, rather than moving a whole
+/// plane of exactly equal coordinates to one side (12 / 8): the lattice
+/// every placed scene starts from keeps its planes exact while it falls.
+#[test]
+fn a_lattice_whose_median_plane_holds_several_grains_is_split_evenly() {
+    let dir = temp("lattice");
+    let file = dir.join("lattice.toml");
+    let text = "[simulation]\ndt = 5e-5\nend_time = 0.01\n\n\
+        [effects]\ngravity = { g = [0.0, 0.0, -9.81] }\ncontact = {}\nrotation = {}\n\n\
+        [[materials]]\nname = \"grain\"\ndensity = 2500.0\nstiffness = 50000.0\n\
+        restitution = 0.4\nhalo = 2.5e-4\n\n\
+        [[particles]]\nmaterial = \"grain\"\n\
+        shape = { kind = \"hull\", triangles = 20, radius = 0.005, seed = 11 }\n\
+        placement = { kind = \"lattice\", count = [5, 2, 2], spacing = 0.0125, \
+        origin = [0.0, 0.0, 0.0] }\n";
+    std::fs::write(&file, text).unwrap();
+    for p in partition::Backend::ALL.map(|b| b.name()) {
+        let args = [
+            "--steps",
+            "40",
+            "--partitioner",
+            p,
+            "--repartition-every",
+            "10",
+            "--overwrite",
+        ];
+        let (_, lines) = run_with_metrics(2, &dir, &file, &args);
+        let slack = if p == "metis" { 9.0 } else { 0.0 };
+        for l in &lines {
+            for n in l["per_rank"]["owned_bodies"].as_array().unwrap() {
+                let n = n.as_f64().unwrap();
+                assert!((n - 10.0).abs() <= slack, "{p}: {l}");
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn more_ranks_than_particles_leaves_ranks_empty_and_the_result_unchanged() {
     let splits = [

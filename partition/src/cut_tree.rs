@@ -6,7 +6,9 @@ use crate::Aabb;
 #[derive(Debug, Clone, PartialEq)]
 pub enum Node {
     Leaf(i32),
-    /// Points with `x[dim] <= value` go left.
+    /// Points with `x[dim] <= value` go left; the plane `x[dim] == value`
+    /// bounds both sides' closed regions (items on it may be dealt to
+    /// either).
     Cut {
         dim: usize,
         value: f64,
@@ -38,7 +40,7 @@ impl CutTree {
         }
     }
 
-    /// Appends the ranks whose region overlaps the closed box `b`.
+    /// Appends the ranks whose closed region overlaps the closed box `b`.
     #[inline]
     pub fn ranks_overlapping(&self, b: &Aabb, out: &mut Vec<i32>) {
         self.visit(0, b, out);
@@ -57,7 +59,7 @@ impl CutTree {
                 if b.lo[dim] <= value {
                     self.visit(left, b, out);
                 }
-                if b.hi[dim] > value {
+                if b.hi[dim] >= value {
                     self.visit(right, b, out);
                 }
             }

@@ -46,7 +46,10 @@ pub trait Partitioner {
     ) -> Result<Vec<i32>, PartitionError>;
 
     /// The rank that owns the region containing `p` (after a partitioning;
-    /// before the first, every point belongs to rank 0).
+    /// before the first, every point belongs to rank 0). A point on a cut
+    /// lies in the closed regions of both sides: this names one of them,
+    /// and [`Partitioner::partition`] may have dealt an item there to the
+    /// other, to split items at one coordinate evenly.
     fn owner(&self, p: [f64; 3]) -> Result<i32, PartitionError>;
 
     /// Appends the ranks whose regions overlap box `b` (after a partitioning).

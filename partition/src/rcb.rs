@@ -10,6 +10,16 @@
 //! to the bin holding the target, until the cut is within `tolerance` of the
 //! target weight. Histograms are filled with rayon inside each rank.
 //!
+//! Items at one coordinate are split too. When the weighted median lies
+//! inside a set of items at exactly one coordinate (a plane of a lattice,
+//! which particles keep while they fall together), no cut between
+//! coordinates comes near the target, and a whole plane would go to one
+//! side. The cut is then put at that coordinate and its items, gathered on
+//! every rank, go left in increasing id until the left half holds its
+//! target. A point on a cut lies in both halves' closed regions:
+//! [`Partitioner::owner`] names the left one, while the item itself may
+//! have been dealt to the right.
+//!
 //! Repartitioning reuses the previous cuts: each group keeps its old cut's
 //! axis while that axis is at least half its longest extent (so a domain
 //! whose shape changes a little is not cut anew along another axis, which
@@ -19,6 +29,7 @@
 //! a group goes to its lower ranks. So a repartitioning moves the items the
 //! cuts pass over, in proportion to the drift.
 
+use crate::comm::all_gather_v;
 use crate::cut_tree::{CutTree, Node};
 use crate::{Aabb, Item, PartitionError, Partitioner};
 use mpi::collective::SystemOperation;
@@ -33,6 +44,14 @@ use rayon::prelude::*;
 /// slabs and cut no contacts, and the axis turns, at the cost of one large
 /// migration.
 pub const KEEP_AXIS: f64 = 0.5;
+
+/// The axis of the longest extent, the first of equals (x before y before
+/// z, as Zoltan's RCB picks): a cube of particles falling under gravity is
+/// then cut upright, across the floor it lands on, not into a top half
+/// that has no contacts yet and a bottom half that gets them all.
+pub fn longest_axis(ext: &[f64; 3]) -> usize {
+    (0..3).fold(0, |best, k| if ext[k] > ext[best] { k } else { best })
+}
 
 /// Whether a cut along `dim` is kept for a group of extents `ext`.
 pub fn keeps_axis(ext: &[f64; 3], dim: usize) -> bool {
@@ -110,6 +129,7 @@ impl Rcb {
             }
             let mut searches = self.start_searches(comm, items, &level, &active, previous.as_ref());
             self.find_cuts(comm, items, &level.group_of, &active, &mut searches);
+            split_ties(comm, items, &level.group_of, &active, &mut searches);
             level.split(items, &active, &searches);
         }
         // Leaves carry their ranks; items take the rank of their group.
@@ -156,9 +176,7 @@ impl Rcb {
         let mut searches = vec![settled; ng];
         for &g in active {
             let ext: [f64; 3] = [0, 1, 2].map(|k| ghi[3 * g + k] - glo[3 * g + k]);
-            let longest = (0..3)
-                .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
-                .unwrap_or(0);
+            let longest = longest_axis(&ext);
             let Group { node, r0, r1 } = level.groups[g];
             // The old cut, while its axis is still not much shorter than the
             // longest (see [`KEEP_AXIS`]).
@@ -186,6 +204,7 @@ impl Rcb {
                 full,
                 cut: bracket.1,
                 done: a >= b || a.is_nan() || gw[g] == 0.0,
+                ..Search::default()
             };
         }
         searches
@@ -242,7 +261,7 @@ impl Level {
                 left,
                 right: left + 1,
             };
-            split[g] = Some((self.groups.len() as u32, s.dim, s.cut));
+            split[g] = Some((self.groups.len() as u32, s.dim, s.cut, s.tie));
             self.groups.push(Group {
                 node: left,
                 r0,
@@ -264,8 +283,13 @@ impl Level {
             .par_iter_mut()
             .zip(items.par_iter())
             .for_each(|(g, it)| {
-                if let Some((gl, d, c)) = split[*g as usize] {
-                    *g = if it.point[d] <= c { gl } else { gl + 1 };
+                if let Some((gl, d, c, tie)) = split[*g as usize] {
+                    let left = match tie {
+                        // At the cut, ids up to the last one dealt left.
+                        Some(last) if it.point[d] == c => last.is_some_and(|l| it.id <= l),
+                        _ => it.point[d] <= c,
+                    };
+                    *g = if left { gl } else { gl + 1 };
                 }
             });
     }
@@ -283,6 +307,11 @@ struct Search {
     full: (f64, f64),
     cut: f64,
     done: bool,
+    /// Whether the cut came within tolerance of the target.
+    converged: bool,
+    /// Items at the cut split between the halves: the last id dealt left
+    /// (`None`: none), see [`split_ties`].
+    tie: Option<Option<u64>>,
 }
 
 impl Search {
@@ -307,6 +336,7 @@ impl Search {
         };
         self.cut = candidate(self.bracket, best);
         if (h[best] - t).abs() <= tol || k == 0 {
+            self.converged = (h[best] - t).abs() <= tol;
             self.done = true;
             return;
         }
@@ -315,6 +345,89 @@ impl Search {
         if self.bracket.1 - self.bracket.0 <= 1e-14 * (self.full.1 - self.full.0) {
             self.done = true;
         }
+    }
+}
+
+/// For each group whose search ended short of its target with one
+/// coordinate left in its bracket (an atom of weight: items at exactly one
+/// coordinate), puts the cut at that coordinate and deals its items left in
+/// increasing id until the left half comes closest to its target. The
+/// decision is the same on every rank: searches are, and the atom's items
+/// are gathered on all. Collective, whenever some group's search missed.
+fn split_ties(
+    comm: &SimpleCommunicator,
+    items: &[Item],
+    group_of: &[u32],
+    active: &[usize],
+    searches: &mut [Search],
+) {
+    let ng = searches.len();
+    let open: Vec<bool> = (0..ng)
+        .map(|g| {
+            active.contains(&g)
+                && !searches[g].converged
+                && searches[g].bracket.0 < searches[g].bracket.1
+        })
+        .collect();
+    if !open.contains(&true) {
+        return;
+    }
+    let in_bracket = |it: &Item, g: usize| {
+        let s = &searches[g];
+        let x = it.point[s.dim];
+        open[g] && x > s.bracket.0 && x <= s.bracket.1
+    };
+    // The coordinates left in each open bracket, and the weight below them.
+    let (mut lo, mut hi) = (vec![f64::INFINITY; ng], vec![f64::NEG_INFINITY; ng]);
+    for (it, &g) in items.iter().zip(group_of) {
+        let g = g as usize;
+        if in_bracket(it, g) {
+            let x = it.point[searches[g].dim];
+            lo[g] = lo[g].min(x);
+            hi[g] = hi[g].max(x);
+        }
+    }
+    let (mut glo, mut ghi) = (vec![0.0; ng], vec![0.0; ng]);
+    comm.all_reduce_into(&lo[..], &mut glo[..], SystemOperation::min());
+    comm.all_reduce_into(&hi[..], &mut ghi[..], SystemOperation::max());
+    let atom: Vec<Option<f64>> = (0..ng)
+        .map(|g| (open[g] && glo[g] == ghi[g]).then_some(glo[g]))
+        .collect();
+    let mut below = vec![0.0; ng];
+    // (group, id, weight's bits) per item at an atom, flat.
+    let mut ties: Vec<u64> = Vec::new();
+    for (it, &g) in items.iter().zip(group_of) {
+        let g = g as usize;
+        if let Some(c) = atom[g] {
+            let x = it.point[searches[g].dim];
+            if x < c {
+                below[g] += it.weight;
+            } else if x == c {
+                ties.extend([g as u64, it.id, it.weight.to_bits()]);
+            }
+        }
+    }
+    let mut gbelow = vec![0.0; ng];
+    comm.all_reduce_into(&below[..], &mut gbelow[..], SystemOperation::sum());
+    let gathered = all_gather_v(comm, &ties);
+    let mut ties: Vec<&[u64]> = gathered.chunks_exact(3).collect();
+    ties.sort_unstable_by_key(|t| (t[0], t[1]));
+    for (g, c) in atom.iter().enumerate() {
+        let Some(c) = *c else { continue };
+        let s = &mut searches[g];
+        let mut left = gbelow[g];
+        let mut last = None;
+        for t in ties.iter().filter(|t| t[0] == g as u64) {
+            let w = f64::from_bits(t[2]);
+            // Deal it left while that brings the left half closer.
+            if (left + w - s.target).abs() >= (left - s.target).abs() {
+                break;
+            }
+            left += w;
+            last = Some(t[1]);
+        }
+        s.cut = c;
+        s.tie = Some(last);
     }
 }
 
@@ -448,5 +561,19 @@ impl Partitioner for Rcb {
             None => out.push(0),
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The longest extent wins; among equals, the first axis, as in Zoltan.
+    #[test]
+    fn the_cut_axis_is_the_longest_and_the_first_of_equals() {
+        assert_eq!(longest_axis(&[1.0, 1.0, 1.0]), 0);
+        assert_eq!(longest_axis(&[1.0, 2.0, 2.0]), 1);
+        assert_eq!(longest_axis(&[1.0, 2.0, 2.0 + 1e-12]), 2);
+        assert_eq!(longest_axis(&[0.0, 0.0, 0.0]), 0);
     }
 }

@@ -42,9 +42,7 @@ impl<'c> ZoltanPartitioner<'c> {
             return Ok(());
         }
         let ext = domain_extent(comm, items);
-        let longest = (0..3)
-            .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
-            .unwrap_or(0);
+        let longest = crate::rcb::longest_axis(&ext);
         let keep = self
             .locked_axis
             .is_some_and(|d| crate::rcb::keeps_axis(&ext, d));
@@ -75,15 +73,8 @@ impl Partitioner for ZoltanPartitioner<'_> {
         items: &[Item],
     ) -> Result<Vec<i32>, PartitionError> {
         self.relock(comm, items)?;
-        let mut owners = self.zoltan.partition(items)?;
+        let owners = self.zoltan.partition(items)?;
         self.partitioned = true;
-        // Zoltan may split items lying exactly on a cut between both sides to
-        // balance them, while its point query sends the cut plane to one side.
-        // Regions must own their points (ghost search relies on it), so the
-        // point query has the last word; it differs only for items on a cut.
-        for (o, it) in owners.iter_mut().zip(items) {
-            *o = self.zoltan.point_assign(it.point)?;
-        }
         Ok(owners)
     }
 
