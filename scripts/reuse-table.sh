@@ -42,9 +42,10 @@ def load(name):
     return [json.loads(l) for l in open(os.path.join(tmp, name))]
 print("| scene | ranks | partitioner | first by work, reused / scratch | "
       "moved, reused | moved, from scratch | reused / scratch | "
-      "largest repartitioning, reused / scratch | MB moved, reused / scratch | "
+      "largest repartitioning, reused / scratch | a median repartitioning from scratch | "
+      "MB moved, reused / scratch | "
       "work-weighted pair imbalance, reused / scratch | work-weighted modelled-cost imbalance, reused / scratch |")
-print("|---|---|---|---|---|---|---|---|---|---|---|")
+print("|---|---|---|---|---|---|---|---|---|---|---|---|")
 names = sorted({os.path.basename(f).split("@")[1].rsplit("-", 2)[0]
                 for f in glob.glob(os.path.join(tmp, "*.jsonl"))})
 for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names):
@@ -66,9 +67,11 @@ for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names
     pairs, cost = weighted("triangle_pairs"), weighted("modelled_work_ns")
     k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i], default=None)
     largest = "%d / %d" % (moved["reuse"][k], moved["fresh"][k]) if k is not None else "-"
+    fresh_sorted = sorted(moved["fresh"])
+    median = "%d" % fresh_sorted[len(fresh_sorted) // 2] if fresh_sorted else "-"
     a, b = sum(moved["reuse"]), sum(moved["fresh"])
-    print("| %s | %d | %s | %d / %d | %d | %d | %.2f | %s | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
-        scene, ranks, p, first["reuse"], first["fresh"], a, b, a / b if b else 1.0, largest,
+    print("| %s | %d | %s | %d / %d | %d | %d | %.2f | %s | %s | %.2f / %.2f | %.3f / %.3f | %.3f / %.3f |" % (
+        scene, ranks, p, first["reuse"], first["fresh"], a, b, a / b if b else 1.0, largest, median,
         mb["reuse"], mb["fresh"], pairs["reuse"], pairs["fresh"],
         cost["reuse"], cost["fresh"]))
 print()
@@ -77,7 +80,8 @@ print("First by work: the bodies moved by the first repartitioning weighed by wo
       "Moved: bodies that changed rank over the repartitionings after it, which follow the "
       "particles' drift. Largest "
       "repartitioning: the one that moved most from scratch, and what the reusing run moved at "
-      "the same step. Imbalance: the most any rank did, summed over the 100-step intervals, over "
+      "the same step. A median repartitioning from scratch: what the particles' drift alone moves "
+      "over one interval, the floor under what a repartitioning that follows it can move. Imbalance: the most any rank did, summed over the 100-step intervals, over "
       "the mean's sum, so that an interval counts by its work, as it does in the run's time: of "
       "the triangle pairs checked, and of the work the partitioner balances, the `pairs` "
       "weight's modelled cost (each rank's bodies, body pairs and triangle pairs at their cost, "
