@@ -102,6 +102,12 @@ step_metrics! {
         /// The step less its waits for other ranks (reduce, wait, return wait).
         busy_seconds,
         step_seconds,
+        /// The busy seconds of the step before, of this rank and of the
+        /// slowest rank (carried by the step's all-reduce): their sums give
+        /// the imbalance step by step ([`per_step_imbalance`]), which the
+        /// ranks' totals hide when the slower rank changes during a run.
+        counted_busy_seconds,
+        slowest_busy_seconds,
     }
 }
 
@@ -148,6 +154,23 @@ pub fn imbalance(values: impl Iterator<Item = f64> + Clone) -> f64 {
     }
 }
 
+/// The busy imbalance step by step: the slowest rank's busy time summed
+/// over the steps, over the mean rank's (1 with no steps). Each step the
+/// others wait for the slowest, so this, not the imbalance of the ranks'
+/// totals, is what the imbalance costs: a run whose two halves each have a
+/// different slow rank has totals in balance and a per-step imbalance
+/// above 1.
+pub fn per_step_imbalance(ranks: &[StepMetrics]) -> f64 {
+    let n = ranks.len().max(1) as f64;
+    let mean = ranks.iter().map(|m| m.counted_busy_seconds).sum::<f64>() / n;
+    let slowest = ranks.first().map_or(0.0, |m| m.slowest_busy_seconds);
+    if mean > 0.0 {
+        slowest / mean
+    } else {
+        1.0
+    }
+}
+
 /// One JSON line of an interval's metrics on all ranks (see
 /// [`StepMetrics::extend_interval`]): per rank, summed, and the imbalances
 /// of owned triangles and busy seconds.
@@ -167,6 +190,7 @@ pub fn json_line(ranks: &[StepMetrics]) -> serde_json::Value {
         "ranks": ranks.len(),
         "triangle_imbalance": imbalance(ranks.iter().map(|m| m.owned_triangles as f64)),
         "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
+        "busy_imbalance_per_step": per_step_imbalance(ranks),
         "sum": sum,
         "per_rank": per_rank,
     })

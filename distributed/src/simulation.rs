@@ -353,6 +353,7 @@ impl<'c> DistributedSimulation<'c> {
     /// that all stop after the same step.
     pub fn step(&mut self, stop: bool) -> Result<bool, String> {
         let step_start = Instant::now();
+        let previous_busy = self.metrics.busy_seconds;
         // The first step carries what the start's partitioning cost.
         let carried = if self.steps_run == 0 {
             self.metrics
@@ -384,11 +385,14 @@ impl<'c> DistributedSimulation<'c> {
             f64::from(u8::from(!finite)),
             f64::from(u8::from(self.ctx.stats.detection.deep_contacts > 0)),
             f64::from(u8::from(due)),
+            previous_busy,
         ];
-        let mut global = [0.0; 5];
+        let mut global = [0.0; 6];
         self.comm
             .all_reduce_into(&flags[..], &mut global[..], SystemOperation::max());
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
+        self.metrics.counted_busy_seconds = previous_busy;
+        self.metrics.slowest_busy_seconds = global[5];
         if global[2] > 0.0 {
             let at = NonFinite {
                 step: self.local.world.step + 1,
@@ -425,13 +429,16 @@ impl<'c> DistributedSimulation<'c> {
         self.totals += self.ctx.stats;
         let m = &mut self.metrics;
         m.owned_bodies = self.local.owned.len() as u64;
+        // Bodies out of the run (waiting, or taken out) cost nothing per step.
+        let present = self.local.owned.iter();
+        let present = present.filter(|&&i| !self.local.world.bodies[i].is_out());
         m.owned_triangles = self.local.owned_triangles();
         m.local_bodies = self.local.world.bodies.len() as u64;
         m.local_triangles = self.local.triangles();
         m.neighbours = self.lists.send.len().max(self.lists.recv.len()) as u64;
         m.modelled_work_ns =
-            crate::weights::rank_cost(m.owned_bodies, m.body_pairs, m.triangle_pairs).round()
-                as u64;
+            crate::weights::rank_cost(present.count() as u64, m.body_pairs, m.triangle_pairs)
+                .round() as u64;
         // The first step also carries the start's sections (see above).
         m.step_seconds = step_start.elapsed().as_secs_f64() + carried.sections();
         m.busy_seconds =

@@ -688,6 +688,33 @@ fn metrics_count_every_rank_and_every_body_once() {
         assert_eq!(l["sum"]["ghosts_sent"], l["sum"]["ghosts_received"], "{l}");
         assert!(l["triangle_imbalance"].as_f64().unwrap() >= 1.0);
         migrated += l["sum"]["migrated_bodies"].as_f64().unwrap();
+        // The slowest rank's busy time, carried by the all-reduce, is the
+        // same on every rank and at least each rank's own, step by step.
+        let column = |f: &str| -> Vec<f64> {
+            let v = l["per_rank"][f].as_array().unwrap();
+            v.iter().map(|x| x.as_f64().unwrap()).collect()
+        };
+        let slowest = column("slowest_busy_seconds");
+        assert!(slowest.iter().all(|&s| s == slowest[0]), "{l}");
+        assert!(
+            column("counted_busy_seconds")
+                .iter()
+                .all(|&c| c <= slowest[0]),
+            "{l}"
+        );
+        assert!(l["busy_imbalance_per_step"].as_f64().unwrap() >= 1.0, "{l}");
+    }
+    // The busy time carried is each step's, one step late: all of it but
+    // the last step's.
+    let total = |f: &str, r: usize| -> f64 {
+        let at = |l: &serde_json::Value| l["per_rank"][f][r].as_f64().unwrap();
+        lines.iter().map(at).sum()
+    };
+    let last = lines.last().unwrap();
+    for r in 0..3 {
+        let missing = total("busy_seconds", r) - total("counted_busy_seconds", r);
+        let last_ten = last["per_rank"]["busy_seconds"][r].as_f64().unwrap();
+        assert!(missing > 0.0 && missing < last_ten, "{missing} {last_ten}");
     }
     // The first step places the bodies dealt out in turn.
     assert!(migrated > 0.0);
