@@ -47,7 +47,7 @@ pub struct SetTriangle {
 }
 
 impl SetTriangle {
-    fn new(vertices: Triangle, halo: f64) -> SetTriangle {
+    pub(crate) fn new(vertices: Triangle, halo: f64) -> SetTriangle {
         SetTriangle {
             vertices,
             bounds: Bounds::of(&vertices, halo),
