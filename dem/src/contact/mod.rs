@@ -44,7 +44,6 @@
 
 mod bounds;
 mod broad_phase;
-mod clusters;
 pub mod features;
 mod separation;
 mod sweep;
@@ -253,8 +252,6 @@ struct Task {
     vertices: Vec<DVec3>,
     /// Scratch of the hull test.
     hulls: HullScratch,
-    /// Large meshes' clusters (see `clusters`).
-    clusters: clusters::Clusters,
     /// Body pairs whose boxes overlapped but whose hulls are farther apart
     /// than their reach.
     hulls_apart: usize,
@@ -755,7 +752,6 @@ impl Task {
         self.body_pairs = 0;
         self.hulls_apart = 0;
         self.work.clear();
-        self.clusters.begin_pass();
         let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
         let prefetch = rayon::current_num_threads() > 1;
@@ -793,41 +789,15 @@ impl Task {
             // Every test below passes for a sizeable fraction (30-60% in the
             // hopper), so branches on them would mispredict: each loop writes
             // every index and advances past those that pass.
-            // Large meshes through their clusters: the same triangles, in
-            // the same order. Only parts that are their body's whole mesh in
-            // its order (owned parts) have clusters.
-            let whole = |g: &BodyGroup, start: usize, n: usize| {
-                let shape = world.bodies[g.body as usize].shape;
-                let mesh = &world.shapes[shape];
-                let in_order = |k: usize| set.key(start + k).index as usize == k;
-                (phase == Phase::LocalLocal
-                    && n > clusters::CLUSTERED_ABOVE
-                    && mesh.triangles.len() == n
-                    && in_order(0)
-                    && in_order(n - 1))
-                .then_some((shape, mesh))
-            };
-            let n_a = match whole(fa.group(), a0, at.len()) {
-                Some((shape, mesh)) => {
-                    self.clusters
-                        .select(shape, mesh, at, a0, &b_box, &mut self.candidates)
-                }
-                None => select(&mut self.candidates, a.range(), |i| {
-                    at[i - a0].bounds.overlaps(&b_box)
-                }),
-            };
+            let n_a = select(&mut self.candidates, a.range(), |i| {
+                at[i - a0].bounds.overlaps(&b_box)
+            });
             if n_a == 0 {
                 continue;
             }
-            let n_b = match whole(fb.group(), b0, bt.len()) {
-                Some((shape, mesh)) => {
-                    self.clusters
-                        .select(shape, mesh, bt, b0, &a_box, &mut self.others)
-                }
-                None => select(&mut self.others, b.range(), |j| {
-                    bt[j - b0].bounds.overlaps(&a_box)
-                }),
-            };
+            let n_b = select(&mut self.others, b.range(), |j| {
+                bt[j - b0].bounds.overlaps(&a_box)
+            });
             if n_b == 0 {
                 continue;
             }

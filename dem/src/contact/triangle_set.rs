@@ -47,7 +47,7 @@ pub struct SetTriangle {
 }
 
 impl SetTriangle {
-    pub(crate) fn new(vertices: Triangle, halo: f64) -> SetTriangle {
+    fn new(vertices: Triangle, halo: f64) -> SetTriangle {
         SetTriangle {
             vertices,
             bounds: Bounds::of(&vertices, halo),
