@@ -427,18 +427,17 @@ impl<'c> DistributedSimulation<'c> {
         self.local.world.time += h;
         self.local.world.step += 1;
         self.totals += self.ctx.stats;
+        // Bodies out of the run (waiting, or taken out) cost nothing per step.
+        let (owned, bodies) = (&self.local.owned, &self.local.world.bodies);
+        let present = owned.iter().filter(|&&i| !bodies[i].is_out()).count() as u64;
         let m = &mut self.metrics;
         m.owned_bodies = self.local.owned.len() as u64;
-        // Bodies out of the run (waiting, or taken out) cost nothing per step.
-        let present = self.local.owned.iter();
-        let present = present.filter(|&&i| !self.local.world.bodies[i].is_out());
         m.owned_triangles = self.local.owned_triangles();
         m.local_bodies = self.local.world.bodies.len() as u64;
         m.local_triangles = self.local.triangles();
         m.neighbours = self.lists.send.len().max(self.lists.recv.len()) as u64;
         m.modelled_work_ns =
-            crate::weights::rank_cost(present.count() as u64, m.body_pairs, m.triangle_pairs)
-                .round() as u64;
+            crate::weights::rank_cost(present, m.body_pairs, m.triangle_pairs).round() as u64;
         // The first step also carries the start's sections (see above).
         m.step_seconds = step_start.elapsed().as_secs_f64() + carried.sections();
         m.busy_seconds =

@@ -413,10 +413,11 @@ fn particles_out_of_the_run_are_never_ghosts() {
 
 /// Five planes of four grains each, falling free: the weighted median lies
 /// in the middle plane, so an even split must cut through it. Every
-/// partitioner splits the 20 grains 10 / 10 (metis, a graph, within one),
-/// at the start and at every repartitioning, rather than moving a whole
-/// plane of exactly equal coordinates to one side (12 / 8): the lattice
-/// every placed scene starts from keeps its planes exact while it falls.
+/// geometric partitioner splits the 20 grains 10 / 10, at the start and at
+/// every repartitioning, rather than moving a whole plane of exactly equal
+/// coordinates to one side (12 / 8): the lattice every placed scene starts
+/// from keeps its planes exact while it falls. (METIS is left out: its
+/// regions are grid cells, each given whole to one rank.)
 #[test]
 fn a_lattice_whose_median_plane_holds_several_grains_is_split_evenly() {
     let dir = temp("lattice");
@@ -431,6 +432,9 @@ fn a_lattice_whose_median_plane_holds_several_grains_is_split_evenly() {
         origin = [0.0, 0.0, 0.0] }\n";
     std::fs::write(&file, text).unwrap();
     for p in partition::Backend::ALL.map(|b| b.name()) {
+        if p == "metis" {
+            continue;
+        }
         let args = [
             "--steps",
             "40",
@@ -441,11 +445,10 @@ fn a_lattice_whose_median_plane_holds_several_grains_is_split_evenly() {
             "--overwrite",
         ];
         let (_, lines) = run_with_metrics(2, &dir, &file, &args);
-        let slack = if p == "metis" { 9.0 } else { 0.0 };
         for l in &lines {
             for n in l["per_rank"]["owned_bodies"].as_array().unwrap() {
                 let n = n.as_f64().unwrap();
-                assert!((n - 10.0).abs() <= slack, "{p}: {l}");
+                assert_eq!(n, 10.0, "{p}: {l}");
             }
         }
     }
