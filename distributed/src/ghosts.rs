@@ -3,7 +3,7 @@
 //!
 //! **Who gets what.** Each rank's *reach* is the union of its particles'
 //! boxes (a sphere about the centre of mass of the shape's radius), each
-//! inflated by the particle's halo and half the skin, kept as one box per
+//! inflated by the particle's halo and the ghost pad, kept as one box per
 //! cell of a coarse grid ([`Reach`]); a particle goes to every other rank
 //! whose reach its own inflated box overlaps. The test is
 //! per body, against where the other rank's particles actually are, not the
@@ -12,8 +12,8 @@
 //! s, s sends one to r (the two boxes that overlap belong one to each), so
 //! the per-step messages go both ways between the same neighbours.
 //!
-//! **When.** The lists hold while no body has moved farther than half the
-//! skin since they were drawn (every box was inflated by that much); they
+//! **When.** The lists hold while no body has moved farther than the pad
+//! since they were drawn (every box was inflated by that much); they
 //! are drawn anew then, and after a migration. Drawing them sends each new
 //! ghost whole ([`BodyRecord`]); in between, only motions travel, 13 numbers
 //! per ghost, in the order both sides agreed on (increasing id), no names.

@@ -63,6 +63,9 @@ step_metrics! {
         term_bytes_sent,
         /// Whether the ghost lists were drawn anew.
         lists_drawn,
+        /// Whether the neighbour list was drawn anew: with the ghost lists,
+        /// or alone from the ghosts' current motions.
+        neighbour_lists_drawn,
         /// Contacts this rank computed (each contact of the run on one rank).
         contacts,
         /// Body pairs and triangle pairs the detection examined.

@@ -22,10 +22,12 @@
 //!    and their contacts' history (through `dem::effects::ContactHistory`);
 //! 2. owners: half kick, drift; one all-reduce of the travel, the stop
 //!    flag and the failure flags;
-//! 3. once some body may have moved half the skin since the ghost lists
-//!    were drawn (or after a migration): draw them anew, ghosts sent whole,
-//!    the rank's world rebuilt, the broad phase run; otherwise the
-//!    neighbour list is kept and:
+//! 3. once some body may have moved [`GHOST_SKINS`] half skins since the
+//!    ghost lists were drawn (or after a migration): draw them anew, ghosts
+//!    sent whole, the rank's world rebuilt, the broad phase run; once it
+//!    may have moved half the skin since the neighbour list was drawn: the
+//!    ghosts' motions exchanged first, the broad phase run on them;
+//!    otherwise the neighbour list is kept and:
 //! 4. the ghosts' motions are posted (non-blocking);
 //! 5. detection among owned bodies and obstacles, testing the posted
 //!    requests between pieces, so that the motions move meanwhile;
@@ -81,6 +83,23 @@ use std::time::Instant;
 /// is two small all-reduces).
 pub const CHECK_EVERY: u64 = 20;
 
+/// The ghost lists' pad, in half skins: drawing them is collective and
+/// rebuilds the rank's world, so they are drawn with a wider pad than the
+/// neighbour list, which is redrawn alone in between from the ghosts'
+/// current motions.
+pub const GHOST_SKINS: f64 = 3.0;
+
+/// What a step draws anew before its detection.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Redraw {
+    /// Both lists hold.
+    Keep,
+    /// The neighbour list, from the ghosts' current motions.
+    List,
+    /// The ghost lists (the ghosts sent whole), then the neighbour list.
+    Ghosts,
+}
+
 /// How a run is split.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settings {
@@ -91,8 +110,9 @@ pub struct Settings {
     /// [`CHECK_EVERY`] steps is more imbalanced (max/mean) than this.
     pub repartition_when: Option<f64>,
     pub exchange: Exchange,
-    /// The skin of the neighbour list and of the ghost lists: both are drawn
-    /// anew once some body may have moved half of it (0: every step).
+    /// The skin of the neighbour list, drawn anew once some body may have
+    /// moved half of it, and of the ghost lists, drawn anew once some body
+    /// may have moved [`GHOST_SKINS`] halves of it (0: both every step).
     pub skin: f64,
     /// What a particle weighs for the partitioner.
     pub weights: crate::Weights,
@@ -137,8 +157,10 @@ pub struct DistributedSimulation<'c> {
     /// The ranks force terms go to and come from, for the neighbour list's life.
     term_peers: (Vec<i32>, Vec<i32>),
     lists_stale: bool,
-    /// How far any body may have moved since the lists were drawn.
+    /// How far any body may have moved since the neighbour list was drawn,
+    /// and since the ghost lists were.
     travel: f64,
+    ghost_travel: f64,
     steps_run: u64,
     /// Steps in a row, up to the one before the last, in which some rank
     /// found a contact deeper than the halos.
@@ -252,6 +274,7 @@ impl<'c> DistributedSimulation<'c> {
             term_peers: Default::default(),
             lists_stale: true,
             travel: 0.0,
+            ghost_travel: 0.0,
             steps_run: 0,
             deep_steps: 0,
             metrics: StepMetrics::default(),
@@ -271,7 +294,7 @@ impl<'c> DistributedSimulation<'c> {
         s.obstacles.iter_mut().for_each(|o| o.1.follow_drive(t));
         s.repartition()?;
         if let Start::Fresh = start {
-            s.evaluate(true, false)?;
+            s.evaluate(Redraw::Ghosts, false)?;
         }
         Ok(s)
     }
@@ -417,8 +440,15 @@ impl<'c> DistributedSimulation<'c> {
         }
         // NaN travel (a body's state gone bad) redraws too.
         self.travel += global[0];
-        let within = self.travel <= 0.5 * self.settings.skin;
-        let redraw = self.lists_stale || !within;
+        self.ghost_travel += global[0];
+        let within = |travel: f64, pad: f64| travel <= pad;
+        let redraw = if self.lists_stale || !within(self.ghost_travel, self.ghost_pad()) {
+            Redraw::Ghosts
+        } else if !within(self.travel, 0.5 * self.settings.skin) {
+            Redraw::List
+        } else {
+            Redraw::Keep
+        };
         self.evaluate(redraw, true)?;
         let start = Instant::now();
         book_entries(&self.local.world, &mut self.effects);
@@ -498,13 +528,23 @@ impl<'c> DistributedSimulation<'c> {
         (moved, finite)
     }
 
-    /// Contacts and forces of the current state, with the lists drawn anew
-    /// first when `redraw`; with `kick`, the owners' closing half kick.
-    fn evaluate(&mut self, redraw: bool, kick: bool) -> Result<(), String> {
-        if redraw {
-            let start = Instant::now();
-            self.redraw();
-            self.metrics.lists_seconds += start.elapsed().as_secs_f64();
+    /// How far a body may move before the ghost lists are drawn anew: the
+    /// pad of the boxes they are drawn with.
+    fn ghost_pad(&self) -> f64 {
+        GHOST_SKINS * 0.5 * self.settings.skin
+    }
+
+    /// Contacts and forces of the current state, with the lists `redraw`
+    /// names drawn anew first; with `kick`, the owners' closing half kick.
+    fn evaluate(&mut self, redraw: Redraw, kick: bool) -> Result<(), String> {
+        match redraw {
+            Redraw::Ghosts => {
+                let start = Instant::now();
+                self.redraw();
+                self.metrics.lists_seconds += start.elapsed().as_secs_f64();
+            }
+            Redraw::List => self.travel = 0.0,
+            Redraw::Keep => {}
         }
         self.ctx.contacts.clear();
         self.ctx.stats = StepStats::default();
@@ -528,14 +568,37 @@ impl<'c> DistributedSimulation<'c> {
         Ok(())
     }
 
+    /// The ghosts' motions, exchanged before anything else: a neighbour list
+    /// drawn anew reads where the ghosts are now.
+    fn receive_motions(&mut self) {
+        let start = Instant::now();
+        let none = |_: &mut dyn FnMut()| ();
+        let lists = &self.lists;
+        let received = exchange_motions(
+            self.comm,
+            lists,
+            &self.local.world,
+            Exchange::Blocking,
+            none,
+        );
+        put_motions(&mut self.local.world, &lists.recv, &received.motions);
+        self.metrics.wait_seconds += received.wait;
+        self.metrics.post_seconds += (start.elapsed().as_secs_f64() - received.wait).max(0.0);
+    }
+
     /// Finds this rank's contacts into `ctx.contacts` (see the module doc).
-    fn detect(&mut self, redraw: bool) {
+    fn detect(&mut self, redraw: Redraw) {
+        if redraw == Redraw::List {
+            self.receive_motions();
+        }
+        let keep = redraw == Redraw::Keep;
         let start = Instant::now();
         let local = &self.local;
         let mut stats = self
             .detector
-            .prepare(&local.world, &local.halos, &local.roles, !redraw);
-        if redraw {
+            .prepare(&local.world, &local.halos, &local.roles, keep);
+        if !keep {
+            self.metrics.neighbour_lists_drawn = 1;
             let ours = self.detector.share(Share::Ghost);
             self.term_peers = ghosts::term_peers(ours, self.detector.theirs(), &local.owner);
         }
@@ -543,10 +606,11 @@ impl<'c> DistributedSimulation<'c> {
         near.clear();
         far.clear();
         let (detector, features, kernel) = (&mut self.detector, &self.features, &self.kernel);
-        // Just drawn, the lists brought the ghosts whole: nothing to exchange.
+        // Just drawn, the lists brought the ghosts whole; with the neighbour
+        // list just drawn, their motions came before: nothing to exchange.
         let mode = self.settings.exchange;
         let none = GhostLists::default();
-        let lists = if redraw { &none } else { &self.lists };
+        let lists = if keep { &self.lists } else { &none };
         let work_start = Instant::now();
         let received = exchange_motions(self.comm, lists, &local.world, mode, |progress| {
             let t = Instant::now();
@@ -571,11 +635,7 @@ impl<'c> DistributedSimulation<'c> {
         let around = work_start.elapsed().as_secs_f64() - local_secs - received.wait;
         m.post_seconds += around.max(0.0);
         let start = Instant::now();
-        for ((_, ids), motions) in lists.recv.iter().zip(&received.motions) {
-            for (&i, motion) in ids.iter().zip(motions) {
-                motion.put(&mut self.local.world.bodies[i]);
-            }
-        }
+        put_motions(&mut self.local.world, &lists.recv, &received.motions);
         let (sent, got) = (self.lists.sent() as u64, self.lists.received() as u64);
         let bytes = std::mem::size_of::<Motion>() as u64;
         m.ghosts_sent = sent;
@@ -675,8 +735,8 @@ impl<'c> DistributedSimulation<'c> {
     /// particles, the ghosts that arrived, the obstacles within its reach
     /// (collective).
     fn redraw(&mut self) {
+        let pad = self.ghost_pad();
         let l = &self.local;
-        let pad = 0.5 * self.settings.skin;
         // Particles out of the run touch nothing: they neither reach nor go
         // as ghosts (an insertion redraws the lists at once).
         let present: Vec<usize> = (l.owned.iter().copied())
@@ -746,6 +806,7 @@ impl<'c> DistributedSimulation<'c> {
             ids.iter().for_each(|&i| self.logged[i] = true);
         }
         self.travel = 0.0;
+        self.ghost_travel = 0.0;
         self.lists_stale = false;
         self.metrics.lists_drawn = 1;
     }
@@ -1216,6 +1277,15 @@ fn merge_sums(comm: &SimpleCommunicator, parts: &[f64]) -> Option<ExactSum> {
         at += n as usize;
     }
     Some(sum)
+}
+
+/// Puts the `motions` that arrived from each neighbour of `recv` on its ghosts.
+fn put_motions(world: &mut dem::world::World, recv: &[(i32, Vec<usize>)], motions: &[Vec<Motion>]) {
+    for ((_, ids), motions) in recv.iter().zip(motions) {
+        for (&i, motion) in ids.iter().zip(motions) {
+            motion.put(&mut world.bodies[i]);
+        }
+    }
 }
 
 /// `near` and `far` (each grouped by body pair, in pair order, no pair in

@@ -725,6 +725,31 @@ fn metrics_count_every_rank_and_every_body_once() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The ghost lists, drawn with a wider pad, outlast the neighbour list,
+/// which is redrawn alone in between; never the other way round.
+#[test]
+fn the_neighbour_list_is_redrawn_alone_between_ghost_lists() {
+    let dir = temp("two-pads");
+    let args = ["--steps", "800", "--repartition-every", "1000"];
+    let (_, lines) = run_with_metrics(2, &dir, &scene("silo-1000.toml"), &args);
+    for r in 0..2 {
+        let drawn = |f: &str, l: &serde_json::Value| l["per_rank"][f][r].as_f64().unwrap();
+        for l in &lines {
+            assert!(
+                drawn("neighbour_lists_drawn", l) >= drawn("lists_drawn", l),
+                "{l}"
+            );
+        }
+        let total = |f: &str| -> f64 { lines.iter().map(|l| drawn(f, l)).sum() };
+        let (ghost, neighbour) = (total("lists_drawn"), total("neighbour_lists_drawn"));
+        assert!(
+            ghost >= 1.0 && neighbour > ghost,
+            "rank {r}: {ghost} {neighbour}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_bad_scene_ends_every_rank_with_one_message() {
     let dir = temp("bad");
