@@ -40,3 +40,22 @@ awk '
       f("migrate_s"), f("migrated_items"), f("migrated_bytes") / 1e6, f("ghost_items"),
       f("ghost_bytes") / 1e6, f("neighbours_max"), f("box_queries_per_s") / 1e6
   }' "$runs"
+echo
+echo "The ghost exchange alone, a stand-in for the owned contact phase alone (the owned items'"
+echo "pairs whose inflated boxes overlap), and the two overlapped, on the uniform workload:"
+echo "medians over the three steps, on the slowest rank, from the same records."
+echo
+echo "| partitioner | ghost items | exchange alone s | owned pairs alone s | overlapped s | sum of the two s | exchange / owned pairs |"
+echo "|---|---|---|---|---|---|---|"
+python3 - "$runs" <<'PY'
+import json, statistics, sys
+rows = {}
+for line in open(sys.argv[1]):
+    r = json.loads(line)
+    if r["workload"] == "uniform":
+        rows.setdefault(r["partitioner"], []).append(r)
+for p, rs in rows.items():
+    m = lambda k: statistics.median(r[k] for r in rs)
+    ex, own, both = m("ghost_exchange_s"), m("owned_pairs_s"), m("overlapped_s")
+    print(f"| {p} | {int(m('ghost_items')):,} | {ex:.4f} | {own:.3f} | {both:.3f} | {ex + own:.3f} | {ex / own:.3f} |")
+PY
