@@ -17,7 +17,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
-repeat=${1:-3}
+repeat=${1:-5}
 cores=${2:-$(nproc)}
 cargo build --release -p experiments >&2
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1

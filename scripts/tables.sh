@@ -93,7 +93,7 @@ RCB (docs/distributed.md)." \
   echo "the two exchanges; peak memory per rank against the rank count"
   echo "(docs/distributed.md, \"One node: ranks or threads\", \"Memory\")."
   echo
-  scripts/distributed-table.sh 3 "$cores"
+  scripts/distributed-table.sh 5 "$cores"
   echo
 } >> "$page"
 echo "Ranks or threads: done" >&2
