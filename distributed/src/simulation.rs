@@ -112,7 +112,7 @@ pub struct Settings {
     pub exchange: Exchange,
     /// The skin of the neighbour list, drawn anew once some body may have
     /// moved half of it, and of the ghost lists, drawn anew once some body
-    /// may have moved [`GHOST_SKINS`] halves of it (0: both every step).
+    /// may have moved `GHOST_SKINS` halves of it (0: both every step).
     pub skin: f64,
     /// What a particle weighs for the partitioner.
     pub weights: crate::Weights,
