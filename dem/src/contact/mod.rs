@@ -21,7 +21,9 @@
 //!    than half the skin since; meanwhile each step's tasks fill the listed
 //!    bodies and keep the pairs whose current boxes overlap, so the pairs
 //!    examined are exactly those the broad phase would have returned.
-//! 2. Triangle culling: only triangles whose inflated boxes overlap the other
+//! 2. Triangle culling: a listed pair whose hulls were shown apart with a
+//!    clearance that the bodies' displacements since have not used up is
+//!    left out (see `PairMemo`); then only triangles whose inflated boxes overlap the other
 //!    body's box, only pairs of those whose inflated boxes overlap, and only
 //!    pairs that neither triangle's plane separates by more than the halo sum
 //!    (the face normals are two separating axes: cheap, and decisive for large
@@ -55,11 +57,12 @@ pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, Tria
 use triangle_set::{Part, PassPairs, PassSet};
 
 use crate::distance::{distance_many_serial, Closest, Counts, Options, PenaltyStats, Triangle};
+use crate::integrate::travel_bound;
 use crate::mesh::Features;
 use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
 use features::{append_feature_contacts, FeatureScratch};
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -131,6 +134,22 @@ crate::named_enum!(Culling, "culling", [(Hulls, "hulls"), (Boxes, "boxes")]);
 /// Two bodies (or their groups in a triangle set).
 type BodyPair = (usize, usize);
 
+/// What a listed body pair's last examination showed, for the next.
+#[derive(Debug, Clone, Copy, Default)]
+struct PairMemo {
+    /// The direction that last separated (or nearly) its bodies' hulls,
+    /// zero when not yet known (see [`separation::apart`]).
+    hint: DVec3,
+    /// While the two bodies' displacements since their anchors (see
+    /// [`Detector::anchors`]) add up to less than this, they are still
+    /// certainly farther apart than their reach, and the pair is not
+    /// examined at all (0: no such certificate). Set from the hulls'
+    /// clearance ([`separation::clearance`]) less the displacements when it
+    /// was shown: a point's displacement since then is at most the sum of its
+    /// displacements since the anchor, then and now.
+    budget: f64,
+}
+
 /// Pieces a share's pairs are examined in when messages are in flight
 /// meanwhile (see [`Detector::detect_share`]): between pieces, the caller
 /// lets them move.
@@ -143,6 +162,10 @@ pub struct DetectionStats {
     /// Body pairs among `body_pairs` whose convex hulls are farther apart
     /// than their reach: no triangle pair of theirs was examined.
     pub hulls_apart: u64,
+    /// Listed body pairs not examined at all (not in `body_pairs`): their
+    /// hulls were shown apart with a clearance that the bodies' travel since
+    /// has not used up (see [`Detector::moved`]).
+    pub known_apart: u64,
     pub triangle_pairs: u64,
     pub fallback_pairs: u64,
     pub contacts: u64,
@@ -165,6 +188,7 @@ impl std::ops::AddAssign for DetectionStats {
     fn add_assign(&mut self, o: DetectionStats) {
         self.body_pairs += o.body_pairs;
         self.hulls_apart += o.hulls_apart;
+        self.known_apart += o.known_apart;
         self.triangle_pairs += o.triangle_pairs;
         self.fallback_pairs += o.fallback_pairs;
         self.contacts += o.contacts;
@@ -194,10 +218,8 @@ pub struct Detector {
     /// across ranks, in two shares (see [`Share`]), on one node all in the
     /// first.
     lists: [Vec<(usize, usize)>; 3],
-    /// Per pair of the first two lists: the direction that last separated
-    /// (or nearly) its bodies' hulls, zero when not yet known (see
-    /// [`separation::apart`]).
-    hints: [Vec<DVec3>; 2],
+    /// Per pair of the first two lists: what its last examination showed.
+    memos: [Vec<PairMemo>; 2],
     /// Per body: body pairs and triangle pairs examined with it as the first
     /// body, since [`Detector::take_work`].
     work: Vec<[u64; 2]>,
@@ -208,6 +230,12 @@ pub struct Detector {
     listed: bool,
     /// How far any point of any body may have moved since the list was built.
     travel: f64,
+    /// Per body of the world: its pose when the list was built, from which
+    /// its displacement since is bounded (see [`PairMemo::budget`]).
+    anchors: Vec<(DVec3, DQuat)>,
+    /// Per shape of the world: the largest distance of a vertex from the
+    /// body's centre, which bounds how far a turn moves any point.
+    radii: Vec<f64>,
     /// Bytes the copies of the set beyond the first may take (`None`:
     /// [`REPLICA_BUDGET`]); see [`Detector::with_replica_budget`].
     replica_budget: Option<usize>,
@@ -255,6 +283,8 @@ struct Task {
     /// Body pairs whose boxes overlapped but whose hulls are farther apart
     /// than their reach.
     hulls_apart: usize,
+    /// Listed body pairs left out: an earlier certificate still holds.
+    known_apart: usize,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
@@ -388,13 +418,16 @@ impl Detector {
             let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
             let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
             split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
-            for (hints, list) in self.hints.iter_mut().zip(&self.lists) {
-                hints.clear();
-                hints.resize(list.len(), DVec3::ZERO);
+            for (memos, list) in self.memos.iter_mut().zip(&self.lists) {
+                memos.clear();
+                memos.resize(list.len(), PairMemo::default());
             }
             self.times.broad_phase = seconds_since(start);
             stats.broad_phases = 1;
             self.travel = 0.0;
+            self.anchors.clear();
+            self.anchors.extend(world.bodies.iter().map(|b| (b.x, b.q)));
+            self.radii = world.shape_radii();
             self.listed = self.skin > 0.0;
         }
         self.sets = sets;
@@ -447,8 +480,8 @@ impl Detector {
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
         let list = std::mem::take(&mut self.lists[share as usize]);
-        let mut hints = std::mem::take(&mut self.hints[share as usize]);
-        hints.resize(list.len(), DVec3::ZERO);
+        let mut memos = std::mem::take(&mut self.memos[share as usize]);
+        memos.resize(list.len(), PairMemo::default());
         let mut sets = std::mem::take(&mut self.sets);
         let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
         let pass = Pass {
@@ -459,6 +492,8 @@ impl Detector {
             phase: Phase::LocalLocal,
             build: Some(features),
             culling: self.culling,
+            anchors: &self.anchors,
+            radii: &self.radii,
         };
         let mut stats = DetectionStats::default();
         let pieces = if progress.is_some() {
@@ -469,13 +504,13 @@ impl Detector {
         let per = list.len().div_ceil(pieces).max(1);
         // An empty list is one (empty) piece: the pass runs, and is timed.
         let empty: &[(usize, usize)] = &[];
-        let mut chunks: Vec<(&[BodyPair], &mut [DVec3])> =
-            list.chunks(per).zip(hints.chunks_mut(per)).collect();
+        let mut chunks: Vec<(&[BodyPair], &mut [PairMemo])> =
+            list.chunks(per).zip(memos.chunks_mut(per)).collect();
         if chunks.is_empty() {
             chunks.push((empty, &mut []));
         }
-        for (piece, hints) in chunks {
-            let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece, hints);
+        for (piece, memos) in chunks {
+            let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece, memos);
             stats += s;
             // Each task built the contacts of its own body pairs (a body
             // pair's triangle contacts all come from one task), and the tasks
@@ -504,7 +539,7 @@ impl Detector {
         drop(views);
         self.sets = sets;
         self.lists[share as usize] = list;
-        self.hints[share as usize] = hints;
+        self.memos[share as usize] = memos;
         stats
     }
 
@@ -537,6 +572,8 @@ impl Detector {
             phase,
             build: None,
             culling: self.culling,
+            anchors: &[],
+            radii: &[],
         };
         let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.0);
         for task in &self.tasks[..n_tasks] {
@@ -569,14 +606,14 @@ impl Detector {
             broad_phase: seconds_since(start),
             ..DetectionTimes::default()
         };
-        // No list kept: no hints to keep either.
-        let mut hints = vec![DVec3::ZERO; body_pairs.len()];
+        // No list kept: nothing to remember either.
+        let mut memos = vec![PairMemo::default(); body_pairs.len()];
         let (mut stats, n_tasks) = run_tasks(
             &mut self.tasks,
             &mut self.times,
             pass,
             body_pairs,
-            &mut hints,
+            &mut memos,
         );
         stats.broad_phases = 1;
         (stats, n_tasks)
@@ -655,10 +692,13 @@ struct Pass<'a> {
     phase: Phase,
     build: Option<&'a [Features]>,
     culling: Culling,
+    /// The bodies' anchors and the shapes' radii (see [`PairMemo::budget`];
+    /// empty: no pair is left out).
+    anchors: &'a [(DVec3, DQuat)],
+    radii: &'a [f64],
 }
 
-/// Runs the tasks of one phase on `body_pairs` (sorted), with their hints
-/// (see [`separation::apart`]); returns the pass's counts and how many of
+/// Runs the tasks of one phase on `body_pairs` (sorted), with their memos; returns the pass's counts and how many of
 /// `tasks` ran, and sets the narrow phase's time.
 ///
 /// Body pairs are shared among tasks as the kernel's schedule says
@@ -668,7 +708,7 @@ fn run_tasks(
     times: &mut DetectionTimes,
     pass: &Pass,
     body_pairs: &[(usize, usize)],
-    hints: &mut [DVec3],
+    memos: &mut [PairMemo],
 ) -> (DetectionStats, usize) {
     let start = Instant::now();
     let lengths = pass
@@ -679,21 +719,21 @@ fn run_tasks(
     if tasks.len() < n_tasks {
         tasks.resize_with(n_tasks, Task::default);
     }
-    let (mut rest, mut rest_hints) = (body_pairs, hints);
+    let (mut rest, mut rest_memos) = (body_pairs, memos);
     let shares = lengths.iter().map(|&len| {
         let (share, tail) = rest.split_at(len);
-        let (share_hints, hints_tail) = std::mem::take(&mut rest_hints).split_at_mut(len);
-        (rest, rest_hints) = (tail, hints_tail);
-        (share, share_hints)
+        let (share_memos, memos_tail) = std::mem::take(&mut rest_memos).split_at_mut(len);
+        (rest, rest_memos) = (tail, memos_tail);
+        (share, share_memos)
     });
     // Tasks taken in order by whichever thread is free (rayon's own
     // splitting would hand out halves of the list, whatever they cost).
     shares
         .zip(tasks[..n_tasks].iter_mut())
         .par_bridge()
-        .for_each(|((share, hints), task)| {
+        .for_each(|((share, memos), task)| {
             let start = Instant::now();
-            task.run(pass, share, hints);
+            task.run(pass, share, memos);
             task.busy = seconds_since(start);
         });
     times.narrow_phase += seconds_since(start);
@@ -704,6 +744,7 @@ fn run_tasks(
         times.narrow_phase_busy += task.busy;
         stats.body_pairs += task.body_pairs as u64;
         stats.hulls_apart += task.hulls_apart as u64;
+        stats.known_apart += task.known_apart as u64;
         stats.triangle_pairs += task.owners.len() as u64;
         counts = counts + task.counts;
         if !task.owners.is_empty() {
@@ -738,7 +779,7 @@ impl Task {
     /// keeps those within reach, sorted by [`pair_order`]; with `build`,
     /// builds the body pairs' contacts from those too (in parallel with the
     /// other tasks rather than after them all).
-    fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)], hints: &mut [DVec3]) {
+    fn run(&mut self, pass: &Pass, body_pairs: &[(usize, usize)], memos: &mut [PairMemo]) {
         let set = pass.set_of_this_thread();
         let Pass {
             world,
@@ -747,10 +788,22 @@ impl Task {
             phase,
             build,
             culling,
+            anchors,
+            radii,
             ..
         } = *pass;
+        // How far any point of a body may be from where it was at its anchor.
+        let displaced = |body: usize| match anchors.get(body) {
+            Some(&anchor) => {
+                let b = &world.bodies[body];
+                travel_bound(anchor, b, radii[b.shape])
+            }
+            None => f64::INFINITY,
+        };
+        let group_body = |g: usize| set.groups()[g].body as usize;
         self.body_pairs = 0;
         self.hulls_apart = 0;
+        self.known_apart = 0;
         self.work.clear();
         let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
@@ -762,8 +815,15 @@ impl Task {
             }
         };
         (0..PREFETCH_AHEAD).for_each(prefetch_pair);
-        for (k, (&(g, h), hint)) in body_pairs.iter().zip(hints).enumerate() {
+        for (k, (&(g, h), memo)) in body_pairs.iter().zip(memos).enumerate() {
             prefetch_pair(k + PREFETCH_AHEAD);
+            if memo.budget > 0.0
+                && displaced(group_body(g)) + displaced(group_body(h)) < memo.budget
+            {
+                self.known_apart += 1;
+                continue;
+            }
+            memo.budget = 0.0;
             let fa = set.fill(g, world, &mut self.vertices);
             let fb = set.fill(h, world, &mut self.vertices);
             let (a, b) = match phase {
@@ -806,8 +866,13 @@ impl Task {
             // those is all the hull test needs, and is tighter than the body's.
             let hulls = culling == Culling::Hulls;
             let near = [(&a, candidates), (&b, others)];
-            if hulls && self.hulls.apart(world, set, near, reach, hint) {
+            if hulls && self.hulls.apart(world, set, near, reach, &mut memo.hint) {
                 self.hulls_apart += 1;
+                // The whole parts' clearance along the certificate's
+                // direction: the pair's rest until the bodies use it up.
+                let clearance = self.hulls.clearance([&a, &b], reach, memo.hint);
+                let (body_a, body_b) = (fa.group().body as usize, fb.group().body as usize);
+                memo.budget = clearance - displaced(body_a) - displaced(body_b);
                 continue;
             }
             let planes_of = |ids: &[u32], t: &[SetTriangle], t0: usize, planes: &mut Vec<_>| {
@@ -926,6 +991,18 @@ impl HullScratch {
         let union = parts[0].0.bounds.union(&parts[1].0.bounds);
         let extent = (union.hi - union.lo).length();
         separation::apart(&self.corners[0], &self.corners[1], reach, extent, hint)
+    }
+
+    /// After [`Self::apart`] found the parts apart along `d`: by how much
+    /// more than `reach` all of their triangles are apart along it.
+    fn clearance(&self, parts: [&Part; 2], reach: f64, d: DVec3) -> f64 {
+        let Some(&origin) = self.corners[0].first() else {
+            return 0.0;
+        };
+        let union = parts[0].bounds.union(&parts[1].bounds);
+        let extent = (union.hi - union.lo).length();
+        let [a, b] = parts.map(|p| p.triangles().iter().map(|t| &t.vertices));
+        separation::clearance(a, b, d, origin, reach, extent)
     }
 }
 
