@@ -163,8 +163,8 @@ pub struct DetectionStats {
     /// than their reach: no triangle pair of theirs was examined.
     pub hulls_apart: u64,
     /// Listed body pairs not examined at all (not in `body_pairs`): their
-    /// hulls were shown apart with a clearance that the bodies' travel since
-    /// has not used up (see [`Detector::moved`]).
+    /// hulls were shown apart with a clearance that the bodies'
+    /// displacements since have not used up (docs/dem.md, "Culling").
     pub known_apart: u64,
     pub triangle_pairs: u64,
     pub fallback_pairs: u64,
