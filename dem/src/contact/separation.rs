@@ -389,18 +389,7 @@ mod tests {
     /// dense sweep of directions.
     fn brute_bounds(a: &[DVec3], b: &[DVec3]) -> (f64, f64) {
         let mut upper = f64::INFINITY;
-        let tris = |p: &[DVec3]| -> Vec<Triangle> {
-            let mut out = Vec::new();
-            for i in 0..p.len() {
-                for j in i + 1..p.len() {
-                    for k in j + 1..p.len() {
-                        out.push([p[i], p[j], p[k]]);
-                    }
-                }
-            }
-            out
-        };
-        let (ta, tb) = (tris(a), tris(b));
+        let (ta, tb) = (triangles_of(a), triangles_of(b));
         for x in &ta {
             for y in &tb {
                 upper = upper.min(distance_triangle_triangle(x, y).distance);
