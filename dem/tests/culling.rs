@@ -12,9 +12,10 @@ use dem::simulation::Simulation;
 use std::path::Path;
 
 /// Per step: body pairs (examined, or left out as still apart), contacts
-/// and triangle pairs; then the motion bits and the body pairs the hulls
-/// settled.
-type Run = (Vec<[u64; 3]>, Vec<Vec<u64>>, [u64; 2]);
+/// and triangle pairs; then the motion bits, and the body pairs the hulls
+/// settled, those left out as still apart, and those examined on their kept
+/// triangle pairs.
+type Run = (Vec<[u64; 3]>, Vec<Vec<u64>>, [u64; 3]);
 
 fn run(scene: &Scene, culling: Culling, steps: usize) -> Run {
     let mut scene = scene.clone();
@@ -29,16 +30,20 @@ fn run(scene: &Scene, culling: Culling, steps: usize) -> Run {
         states.push(common::motion_bits(&sim.world));
     }
     let t = sim.totals.detection;
-    (counts, states, [t.hulls_apart, t.known_apart])
+    (counts, states, [t.hulls_apart, t.known_apart, t.near_kept])
 }
 
 /// Runs both cullings; asserts the same finds and motion; returns the
-/// triangle pairs each examined, and the body pairs the hulls settled and
-/// those left out as still apart.
-fn compare(scene: &Scene, steps: usize) -> (u64, u64, [u64; 2]) {
+/// triangle pairs each examined, and the body pairs the hulls settled,
+/// those left out as still apart and those examined on kept triangle pairs.
+fn compare(scene: &Scene, steps: usize) -> (u64, u64, [u64; 3]) {
     let (boxes, boxes_states, none_apart) = run(scene, Culling::Boxes, steps);
     let (hulls, hulls_states, apart) = run(scene, Culling::Hulls, steps);
-    assert_eq!(none_apart, [0, 0], "boxes never test hulls");
+    assert_eq!(
+        none_apart,
+        [0, 0, 0],
+        "boxes neither test hulls nor keep pairs"
+    );
     let contacts: u64 = boxes.iter().map(|c| c[1]).sum();
     assert!(contacts > 0, "a test with contacts to find");
     for step in 0..steps {
@@ -64,12 +69,13 @@ fn scene(name: &str) -> Scene {
 /// The hopper: small particles (20 triangles) in a hopper of plates.
 #[test]
 fn hull_culling_finds_what_box_culling_finds_in_the_hopper() {
-    let (boxes, hulls, [apart, still]) = compare(&scene("hopper.toml"), 3_000);
+    let (boxes, hulls, [apart, still, kept]) = compare(&scene("hopper.toml"), 3_000);
     eprintln!(
-        "triangle pairs: boxes {boxes}, hulls {hulls}; body pairs {apart} apart, {still} still apart"
+        "triangle pairs: boxes {boxes}, hulls {hulls}; body pairs {apart} apart, {still} still apart, {kept} on kept pairs"
     );
     assert!(apart > 0 && hulls < boxes / 2, "{hulls} of {boxes}");
     assert!(still > 0, "the clearance left pairs out");
+    assert!(kept > 0, "triangle pairs were kept");
 }
 
 /// Large meshes (hulls of 600 triangles, tumbling onto a floor and each
@@ -107,4 +113,52 @@ position = [0.0, 0.0, -0.01]
     let (boxes, hulls, apart) = compare(&scene, 1_500);
     eprintln!("triangle pairs: boxes {boxes}, hulls {hulls}; body pairs apart {apart:?}");
     assert!(hulls < boxes, "{hulls} of {boxes}");
+}
+
+/// Triangle pairs kept for a body pair, where the bound on the bodies'
+/// displacement is tight: a finely meshed box, tilted by 0.01 rad, falls
+/// without turning (no rotation, no gravity, no friction) straight onto a
+/// finely meshed floor and sinks into the halos. Its lower bottom edge comes
+/// within reach first; its upper one, 1 mm higher, comes within reach while
+/// the pair is examined on the triangle pairs kept at an earlier step (the
+/// margin is 2 mm), its triangles closing on the floor by exactly the
+/// displacement. Every step finds what culling from scratch finds.
+#[test]
+fn kept_triangle_pairs_miss_none_that_come_within_reach() {
+    let text = r#"
+[simulation]
+dt = 1e-5
+end_time = 1.0
+[effects]
+contact = { skin = 8e-3 }
+[[materials]]
+name = "rock"
+density = 2600.0
+stiffness = 1e4
+restitution = 0.4
+halo = 1e-3
+[[particles]]
+material = "rock"
+shape = { kind = "box", size = [0.1, 0.1, 0.1], subdivide = 3 }
+placement = { kind = "single", position = [0.0, 0.0, 0.054] }
+rotation = [0.01, 0.0, 0.0]
+velocity = [0.0, 0.0, -1.0]
+[[obstacles]]
+material = "rock"
+shape = { kind = "box", size = [0.3, 0.3, 0.02], subdivide = 3 }
+position = [0.0, 0.0, -0.01]
+"#;
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scene = Scene::parse(text, "sinking-box.toml", dir).unwrap();
+    let steps = 1_500;
+    let (_, _, [_, _, kept]) = compare(&scene, steps);
+    let (counts, _, _) = run(&scene, Culling::Hulls, steps);
+    let most = counts.iter().map(|c| c[1]).max().unwrap_or(0);
+    let first = counts.iter().map(|c| c[1]).find(|&c| c > 0).unwrap_or(0);
+    eprintln!("{kept} steps on kept pairs; contacts: {first} at first touch, {most} at most");
+    assert!(kept > 100, "the pair was examined on kept pairs: {kept}");
+    assert!(
+        most > first,
+        "more contacts came within reach: {first} then {most}"
+    );
 }

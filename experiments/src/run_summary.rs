@@ -30,6 +30,9 @@ pub struct RunSummary {
     /// Listed body pairs not checked: their hulls were shown apart earlier
     /// with a clearance the bodies have not travelled since.
     pub body_pairs_known_apart: u64,
+    /// Body pairs checked on the triangle pairs kept from an earlier
+    /// culling, with no culling of their own.
+    pub body_pairs_near_kept: u64,
     pub triangle_pairs_checked: u64,
     /// Triangle pairs checked per contact found (0 without contacts).
     pub triangle_pairs_per_contact: f64,
@@ -160,6 +163,7 @@ impl RunSummary {
             body_pairs_checked: d.body_pairs,
             body_pairs_apart_by_hulls: d.hulls_apart,
             body_pairs_known_apart: d.known_apart,
+            body_pairs_near_kept: d.near_kept,
             triangle_pairs_checked: d.triangle_pairs,
             triangle_pairs_per_contact: ratio(d.triangle_pairs as f64, d.contacts as f64),
             narrow_phase_ns_per_triangle_pair: ratio(
@@ -197,8 +201,11 @@ impl RunSummary {
         );
         println!("broad phases           {}", self.broad_phases);
         println!(
-            "body pairs checked     {} ({} apart by their hulls; {} more still apart, not checked)",
-            self.body_pairs_checked, self.body_pairs_apart_by_hulls, self.body_pairs_known_apart
+            "body pairs checked     {} ({} apart by their hulls; {} on kept triangle pairs; {} more still apart, not checked)",
+            self.body_pairs_checked,
+            self.body_pairs_apart_by_hulls,
+            self.body_pairs_near_kept,
+            self.body_pairs_known_apart
         );
         println!(
             "triangle pairs checked {} ({:.1} per contact; narrow phase {:.0} ns each)",

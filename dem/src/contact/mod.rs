@@ -135,19 +135,27 @@ crate::named_enum!(Culling, "culling", [(Hulls, "hulls"), (Boxes, "boxes")]);
 type BodyPair = (usize, usize);
 
 /// What a listed body pair's last examination showed, for the next.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 struct PairMemo {
     /// The direction that last separated (or nearly) its bodies' hulls,
     /// zero when not yet known (see [`separation::apart`]).
     hint: DVec3,
-    /// While the two bodies' displacements since their anchors (see
-    /// [`Detector::anchors`]) add up to less than this, they are still
-    /// certainly farther apart than their reach, and the pair is not
-    /// examined at all (0: no such certificate). Set from the hulls'
-    /// clearance ([`separation::clearance`]) less the displacements when it
-    /// was shown: a point's displacement since then is at most the sum of its
-    /// displacements since the anchor, then and now.
+    /// While the two bodies' displacements since `poses` (bounded by
+    /// [`travel_bound`]) add up to less than this, `near` still holds every
+    /// triangle pair of theirs within reach (0: no such certificate). It is
+    /// what the examination showed: the hulls' clearance beyond the reach
+    /// (see [`separation::clearance`]), or the margin of `near`.
     budget: f64,
+    /// The two bodies' poses (position, orientation) at the examination.
+    poses: [(DVec3, DQuat); 2],
+    /// The triangle pairs (indices into the set) that the examination found
+    /// within reach plus [`Pass::margin`], nearest first; empty: none (the
+    /// pair is left out, unexamined, while the budget lasts).
+    near: Vec<(u32, u32)>,
+    /// Per pair of `near`: by how much its distance then exceeded the reach,
+    /// less the kernel's error allowance (see [`keep_near`]). A pair can be
+    /// within reach now only if this is below the displacements since.
+    gaps: Vec<f64>,
 }
 
 /// Pieces a share's pairs are examined in when messages are in flight
@@ -166,6 +174,9 @@ pub struct DetectionStats {
     /// hulls were shown apart with a clearance that the bodies'
     /// displacements since have not used up (docs/dem.md, "Culling").
     pub known_apart: u64,
+    /// Body pairs among `body_pairs` whose triangle pairs were taken from
+    /// those kept at an earlier culling, with no culling of their own.
+    pub near_kept: u64,
     pub triangle_pairs: u64,
     pub fallback_pairs: u64,
     pub contacts: u64,
@@ -189,6 +200,7 @@ impl std::ops::AddAssign for DetectionStats {
         self.body_pairs += o.body_pairs;
         self.hulls_apart += o.hulls_apart;
         self.known_apart += o.known_apart;
+        self.near_kept += o.near_kept;
         self.triangle_pairs += o.triangle_pairs;
         self.fallback_pairs += o.fallback_pairs;
         self.contacts += o.contacts;
@@ -230,9 +242,6 @@ pub struct Detector {
     listed: bool,
     /// How far any point of any body may have moved since the list was built.
     travel: f64,
-    /// Per body of the world: its pose when the list was built, from which
-    /// its displacement since is bounded (see [`PairMemo::budget`]).
-    anchors: Vec<(DVec3, DQuat)>,
     /// Per shape of the world: the largest distance of a vertex from the
     /// body's centre, which bounds how far a turn moves any point.
     radii: Vec<f64>,
@@ -253,6 +262,13 @@ pub const REPLICA_BUDGET: usize = 256 << 20;
 /// sweep ([`sweep`]) rather than by testing every pair: below, the n · m
 /// branch-free box tests cost less than sorting.
 const SWEEP_ABOVE: usize = 256;
+
+/// The margin of a listed body pair's kept triangle pairs, in skins. A
+/// larger one keeps them for longer, and costs more kernel calls where they
+/// are kept (the triangle pairs within reach and margin); no body moves more
+/// than half a skin before the neighbour list is built anew, which forgets
+/// them, so a margin of one skin would outlive every list.
+const NEAR_MARGIN: f64 = 0.25;
 
 /// How many body pairs ahead a detection task asks for the poses of the
 /// bodies it will fill (see `PassSet::prefetch_pose`).
@@ -285,6 +301,10 @@ struct Task {
     hulls_apart: usize,
     /// Listed body pairs left out: an earlier certificate still holds.
     known_apart: usize,
+    /// Body pairs examined on their kept triangle pairs.
+    near_kept: usize,
+    /// Body pairs culled in full in this pass whose triangle pairs are kept.
+    kept: Vec<Kept>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
@@ -425,8 +445,6 @@ impl Detector {
             self.times.broad_phase = seconds_since(start);
             stats.broad_phases = 1;
             self.travel = 0.0;
-            self.anchors.clear();
-            self.anchors.extend(world.bodies.iter().map(|b| (b.x, b.q)));
             self.radii = world.shape_radii();
             self.listed = self.skin > 0.0;
         }
@@ -492,8 +510,11 @@ impl Detector {
             phase: Phase::LocalLocal,
             build: Some(features),
             culling: self.culling,
-            anchors: &self.anchors,
             radii: &self.radii,
+            margin: match self.culling {
+                Culling::Hulls => NEAR_MARGIN * self.skin,
+                Culling::Boxes => 0.0,
+            },
         };
         let mut stats = DetectionStats::default();
         let pieces = if progress.is_some() {
@@ -572,8 +593,8 @@ impl Detector {
             phase,
             build: None,
             culling: self.culling,
-            anchors: &[],
             radii: &[],
+            margin: 0.0,
         };
         let (stats, n_tasks) = self.broad_and_narrow(&pass, 0.0);
         for task in &self.tasks[..n_tasks] {
@@ -692,10 +713,14 @@ struct Pass<'a> {
     phase: Phase,
     build: Option<&'a [Features]>,
     culling: Culling,
-    /// The bodies' anchors and the shapes' radii (see [`PairMemo::budget`];
-    /// empty: no pair is left out).
-    anchors: &'a [(DVec3, DQuat)],
+    /// The shapes' radii, which bound how far a turn moves a point (see
+    /// [`PairMemo::budget`]); empty: the memos are not kept, and no pair is
+    /// left out.
     radii: &'a [f64],
+    /// How much farther than their reach apart the triangle pairs a hull
+    /// culling keeps for a listed body pair may be (see `PairMemo::near`;
+    /// 0: none kept).
+    margin: f64,
 }
 
 /// Runs the tasks of one phase on `body_pairs` (sorted), with their memos; returns the pass's counts and how many of
@@ -745,6 +770,7 @@ fn run_tasks(
         stats.body_pairs += task.body_pairs as u64;
         stats.hulls_apart += task.hulls_apart as u64;
         stats.known_apart += task.known_apart as u64;
+        stats.near_kept += task.near_kept as u64;
         stats.triangle_pairs += task.owners.len() as u64;
         counts = counts + task.counts;
         if !task.owners.is_empty() {
@@ -788,22 +814,26 @@ impl Task {
             phase,
             build,
             culling,
-            anchors,
             radii,
+            margin,
             ..
         } = *pass;
-        // How far any point of a body may be from where it was at its anchor.
-        let displaced = |body: usize| match anchors.get(body) {
-            Some(&anchor) => {
+        let remember = !radii.is_empty();
+        let pose = |body: usize| (world.bodies[body].x, world.bodies[body].q);
+        // How far any point of the memo's bodies may be from where it was.
+        let moved_since = |memo: &PairMemo, bodies: [usize; 2]| -> f64 {
+            let moved = |(before, body): ((DVec3, DQuat), usize)| {
                 let b = &world.bodies[body];
-                travel_bound(anchor, b, radii[b.shape])
-            }
-            None => f64::INFINITY,
+                travel_bound(before, b, radii[b.shape])
+            };
+            moved((memo.poses[0], bodies[0])) + moved((memo.poses[1], bodies[1]))
         };
         let group_body = |g: usize| set.groups()[g].body as usize;
         self.body_pairs = 0;
         self.hulls_apart = 0;
         self.known_apart = 0;
+        self.near_kept = 0;
+        self.kept.clear();
         self.work.clear();
         let mut pairs = PassPairs::new(set, &mut self.owners);
         // On one thread the poses are in this core's cache already.
@@ -815,15 +845,24 @@ impl Task {
             }
         };
         (0..PREFETCH_AHEAD).for_each(prefetch_pair);
-        for (k, (&(g, h), memo)) in body_pairs.iter().zip(memos).enumerate() {
+        for (k, (&(g, h), memo)) in body_pairs.iter().zip(memos.iter_mut()).enumerate() {
             prefetch_pair(k + PREFETCH_AHEAD);
-            if memo.budget > 0.0
-                && displaced(group_body(g)) + displaced(group_body(h)) < memo.budget
-            {
+            let bodies = [group_body(g), group_body(h)];
+            let moved = if memo.budget > 0.0 {
+                moved_since(memo, bodies)
+            } else {
+                f64::INFINITY
+            };
+            let holds = moved < memo.budget;
+            if holds && memo.near.is_empty() {
                 self.known_apart += 1;
                 continue;
             }
-            memo.budget = 0.0;
+            if !holds {
+                memo.budget = 0.0;
+                memo.near.clear();
+                memo.gaps.clear();
+            }
             let fa = set.fill(g, world, &mut self.vertices);
             let fb = set.fill(h, world, &mut self.vertices);
             let (a, b) = match phase {
@@ -840,8 +879,26 @@ impl Task {
             }
             self.body_pairs += 1;
             let before = pairs.as_slice().len();
+            if holds {
+                // Every triangle pair within reach now was within reach and
+                // margin when the list was kept, and nearer than the reach by
+                // the displacements since: no culling to redo, and the kernel
+                // only for those.
+                let n = memo.gaps.partition_point(|&gap| gap < moved);
+                pairs.between(&a, &b).extend(&memo.near[..n]);
+                self.work.push((g as u32, n as u32));
+                self.near_kept += 1;
+                continue;
+            }
             self.work.push((g as u32, 0));
-            let reach = halos[fa.group().body as usize] + halos[fb.group().body as usize];
+            let [body_a, body_b] = bodies;
+            let reach = halos[body_a] + halos[body_b];
+            // What this examination shows holds while the bodies'
+            // displacements since stay under the margin: it culls with it.
+            memo.poses = [pose(body_a), pose(body_b)];
+            memo.budget = if remember { margin } else { 0.0 };
+            let wide = reach + margin;
+            let (a_wide, b_wide) = (a_box.inflated(margin), b_box.inflated(margin));
             // The parts' triangles as locals, kept in registers across the
             // loops' stores; index i of the set is at i - start.
             let (at, a0) = (a.triangles(), a.range().start);
@@ -850,13 +907,13 @@ impl Task {
             // hopper), so branches on them would mispredict: each loop writes
             // every index and advances past those that pass.
             let n_a = select(&mut self.candidates, a.range(), |i| {
-                at[i - a0].bounds.overlaps(&b_box)
+                at[i - a0].bounds.overlaps(&b_wide)
             });
             if n_a == 0 {
                 continue;
             }
             let n_b = select(&mut self.others, b.range(), |j| {
-                bt[j - b0].bounds.overlaps(&a_box)
+                bt[j - b0].bounds.overlaps(&a_wide)
             });
             if n_b == 0 {
                 continue;
@@ -870,9 +927,9 @@ impl Task {
                 self.hulls_apart += 1;
                 // The whole parts' clearance along the certificate's
                 // direction: the pair's rest until the bodies use it up.
-                let clearance = self.hulls.clearance([&a, &b], reach, memo.hint);
-                let (body_a, body_b) = (fa.group().body as usize, fb.group().body as usize);
-                memo.budget = clearance - displaced(body_a) - displaced(body_b);
+                if remember {
+                    memo.budget = self.hulls.clearance([&a, &b], reach, memo.hint);
+                }
                 continue;
             }
             let planes_of = |ids: &[u32], t: &[SetTriangle], t0: usize, planes: &mut Vec<_>| {
@@ -881,24 +938,25 @@ impl Task {
             };
             planes_of(candidates, at, a0, &mut self.candidate_planes);
             planes_of(others, bt, b0, &mut self.other_planes);
+            // a's boxes grown by the margin: the pairs within reach and margin.
+            let boxes = |ids: &[u32], t: &[SetTriangle], t0: usize, pad: f64, out: &mut Vec<_>| {
+                out.clear();
+                out.extend(ids.iter().map(|&i| t[i as usize - t0].bounds.inflated(pad)));
+            };
+            boxes(candidates, at, a0, margin, &mut self.candidate_boxes);
             let mut between = pairs.between(&a, &b);
             let passes = |p: usize, q: usize| {
                 let (ti, tj) = (
                     &at[candidates[p] as usize - a0],
                     &bt[others[q] as usize - b0],
                 );
-                ti.bounds.overlaps(&tj.bounds)
-                    & !plane_separates(self.other_planes[q], &ti.vertices, reach)
-                    & !plane_separates(self.candidate_planes[p], &tj.vertices, reach)
+                self.candidate_boxes[p].overlaps(&tj.bounds)
+                    & !plane_separates(self.other_planes[q], &ti.vertices, wide)
+                    & !plane_separates(self.candidate_planes[p], &tj.vertices, wide)
             };
             if hulls && n_a * n_b > SWEEP_ABOVE {
                 // Large meshes: only pairs whose boxes overlap are visited.
-                let boxes = |ids: &[u32], t: &[SetTriangle], t0: usize, out: &mut Vec<Bounds>| {
-                    out.clear();
-                    out.extend(ids.iter().map(|&i| t[i as usize - t0].bounds));
-                };
-                boxes(candidates, at, a0, &mut self.candidate_boxes);
-                boxes(others, bt, b0, &mut self.other_boxes);
+                boxes(others, bt, b0, 0.0, &mut self.other_boxes);
                 let common = a_box.intersection(&b_box);
                 let axis = (common.hi - common.lo).max_position();
                 self.hits.clear();
@@ -929,12 +987,21 @@ impl Task {
             if let Some(last) = self.work.last_mut() {
                 last.1 = added as u32;
             }
+            if margin > 0.0 && memo.budget > 0.0 {
+                self.kept.push(Kept {
+                    memo: k,
+                    pairs: before..before + added,
+                    reach,
+                    allowance: kernel_allowance(&a_box.union(&b_box)),
+                });
+            }
         }
         let n = pairs.as_slice().len();
         self.out.resize(n, Closest::UNSET);
         self.stats.resize(n, PenaltyStats::default());
         self.counts = distance_many_serial(&pairs.source(), opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
+        keep_near(&self.kept, &self.out, pairs.as_slice(), memos, margin);
         self.found.clear();
         for (&(i, j), r) in pairs.as_slice().iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
@@ -959,6 +1026,58 @@ impl Task {
             ),
             None => 0,
         };
+    }
+}
+
+/// A body pair culled in full by a task, whose triangle pairs (`pairs`,
+/// positions in the task's pairs) are kept for the next steps.
+#[derive(Debug, Clone)]
+struct Kept {
+    memo: usize,
+    pairs: Range<usize>,
+    reach: f64,
+    allowance: f64,
+}
+
+/// What the kernel's distance of a triangle pair within `union` (the body
+/// pair's box) may be off by: its answers are certified to 1e-13 of the
+/// pair's scale or exact (module `distance`), and the world coordinates
+/// carry the rounding of their distance from the origin; this allows far
+/// more than either.
+fn kernel_allowance(union: &Bounds) -> f64 {
+    let extent = (union.hi - union.lo).length();
+    let far = union.lo.abs().max(union.hi.abs()).max_element();
+    1e-9 * extent + 64.0 * f64::EPSILON * far
+}
+
+/// Keeps, in the memo of each body pair of `kept`, its triangle pairs (of
+/// `pairs`) nearer than reach plus `margin` by the kernel's distances
+/// (`out`), nearest first, with their gaps beyond the reach less the
+/// allowance. A pair with a distance that is not a number keeps nothing:
+/// the body pair is culled in full next time.
+fn keep_near(
+    kept: &[Kept],
+    out: &[Closest],
+    pairs: &[(u32, u32)],
+    memos: &mut [PairMemo],
+    margin: f64,
+) {
+    for kept in kept {
+        let memo = &mut memos[kept.memo];
+        let answers = &out[kept.pairs.clone()];
+        if answers.iter().any(|r| r.distance.is_nan()) {
+            memo.budget = 0.0;
+            continue;
+        }
+        let mut near: Vec<(f64, (u32, u32))> = answers
+            .iter()
+            .zip(&pairs[kept.pairs.clone()])
+            .map(|(r, &p)| (r.distance - kept.reach - kept.allowance, p))
+            .filter(|&(gap, _)| gap < margin)
+            .collect();
+        near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+        memo.gaps.extend(near.iter().map(|x| x.0));
+        memo.near.extend(near.iter().map(|x| x.1));
     }
 }
 
