@@ -6,7 +6,8 @@
 # REPEAT times each: ms/step as median [min, max], the ratio boxes / hulls
 # per pair of runs, the triangle pairs checked per contact under each, the
 # share of listed body pairs the hulls settle (and of those left out
-# unexamined, still apart since an earlier showing), and whether the two final
+# unexamined, still apart since an earlier showing), the share examined on
+# the triangle pairs kept at an earlier culling, and whether the two final
 # checkpoints are the same bits.
 # The boulders fall for a while before they touch: their rows resume, for
 # BOULDER_STEPS, from a pile this script makes first (out/culling/pile).
@@ -42,11 +43,11 @@ $tridem run scenes/boulders.toml --steps 4000 --quiet --output "$work/pile" >&2
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 echo "Measured by \`scripts/culling-table.sh $repeat $boulder_steps\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d); one thread, $repeat alternating runs each: median [min, max]."
 echo
-echo "| scene | steps | hulls (ms/step) | boxes (ms/step) | boxes / hulls | triangle pairs per contact, hulls / boxes | body pairs settled by hulls | left out as still apart | same bits |"
-echo "|---|---|---|---|---|---|---|---|---|"
+echo "| scene | steps | hulls (ms/step) | boxes (ms/step) | boxes / hulls | triangle pairs per contact, hulls / boxes | body pairs settled by hulls | left out as still apart | on kept triangle pairs | same bits |"
+echo "|---|---|---|---|---|---|---|---|---|---|"
 for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 boulders.toml:$boulder_steps; do
   name=${spec%%:*}; scene=scenes/$name; steps=${spec##*:}
-  declare -A secs=() per=() settled=() still=()
+  declare -A secs=() per=() settled=() still=() kept=()
   for k in $(seq "$repeat"); do
     for culling in hulls boxes; do
       out=$work/$name-$culling-$k
@@ -64,6 +65,7 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 boulders.t
       # from an earlier showing (left out unexamined)
       settled[$culling]+="$(echo "$j" | json '(j["body_pairs_apart_by_hulls"] + j["body_pairs_known_apart"])/max(1, j["body_pairs_checked"] + j["body_pairs_known_apart"])') "
       still[$culling]+="$(echo "$j" | json 'j["body_pairs_known_apart"]/max(1, j["body_pairs_checked"] + j["body_pairs_known_apart"])') "
+      kept[$culling]+="$(echo "$j" | json 'j["body_pairs_near_kept"]/max(1, j["body_pairs_checked"] + j["body_pairs_known_apart"])') "
     done
   done
   h=(${secs[hulls]}); b=(${secs[boxes]})
@@ -76,7 +78,8 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 boulders.t
 import sys, statistics as s; print('%.1f%%' % (100 * s.median(float(x) for x in sys.stdin.read().split())))"; }
   share=$(echo ${settled[hulls]} | percent)
   left=$(echo ${still[hulls]} | percent)
-  echo "| $name | $steps | $(echo ${secs[hulls]} | spread) | $(echo ${secs[boxes]} | spread) | $(echo $ratios | spread) | $(echo ${per[hulls]} | med) / $(echo ${per[boxes]} | med) | $share | $left | $same |"
-  unset secs per settled still
+  on_kept=$(echo ${kept[hulls]} | percent)
+  echo "| $name | $steps | $(echo ${secs[hulls]} | spread) | $(echo ${secs[boxes]} | spread) | $(echo $ratios | spread) | $(echo ${per[hulls]} | med) / $(echo ${per[boxes]} | med) | $share | $left | $on_kept | $same |"
+  unset secs per settled still kept
 done
 rm -rf "$work"
