@@ -23,7 +23,10 @@
 //!    examined are exactly those the broad phase would have returned.
 //! 2. Triangle culling: a listed pair whose hulls were shown apart with a
 //!    clearance that the bodies' displacements since have not used up is
-//!    left out (see `PairMemo`); then only triangles whose inflated boxes overlap the other
+//!    left out (see `PairMemo`), and a listed pair culled in full keeps its
+//!    triangle pairs within reach plus a margin, examined alone (no culling)
+//!    while the bodies' displacements since stay under it (`PairMemo::near`);
+//!    otherwise only triangles whose inflated boxes overlap the other
 //!    body's box, only pairs of those whose inflated boxes overlap, and only
 //!    pairs that neither triangle's plane separates by more than the halo sum
 //!    (the face normals are two separating axes: cheap, and decisive for large
