@@ -28,7 +28,9 @@ pub struct RunSummary {
     /// no triangle pair of theirs went to the kernel.
     pub body_pairs_apart_by_hulls: u64,
     /// Listed body pairs not checked: their hulls were shown apart earlier
-    /// with a clearance the bodies have not travelled since.
+    /// with a clearance, or no triangle pair of theirs was within reach
+    /// plus the kept pairs' margin, and the bodies have not travelled that
+    /// far since.
     pub body_pairs_known_apart: u64,
     /// Body pairs checked on the triangle pairs kept from an earlier
     /// culling, with no culling of their own.

@@ -174,8 +174,9 @@ pub struct DetectionStats {
     /// than their reach: no triangle pair of theirs was examined.
     pub hulls_apart: u64,
     /// Listed body pairs not examined at all (not in `body_pairs`): their
-    /// hulls were shown apart with a clearance that the bodies'
-    /// displacements since have not used up (docs/dem.md, "Culling").
+    /// hulls were shown apart with a clearance, or none of their triangle
+    /// pairs was within reach plus the kept pairs' margin, and the bodies'
+    /// displacements since have not used that up (docs/dem.md, "Culling").
     pub known_apart: u64,
     /// Body pairs among `body_pairs` whose triangle pairs were taken from
     /// those kept at an earlier culling, with no culling of their own.
@@ -306,8 +307,10 @@ struct Task {
     known_apart: usize,
     /// Body pairs examined on their kept triangle pairs.
     near_kept: usize,
-    /// Body pairs culled in full in this pass whose triangle pairs are kept.
+    /// Body pairs culled in full in this pass whose triangle pairs are kept,
+    /// and the scratch that sorts them (see [`keep_near`]).
     kept: Vec<Kept>,
+    nearest: Vec<(f64, (u32, u32))>,
     /// Triangle pairs (indices into the set) that the kernel examines.
     owners: Vec<(u32, u32)>,
     out: Vec<Closest>,
@@ -1004,7 +1007,8 @@ impl Task {
         self.stats.resize(n, PenaltyStats::default());
         self.counts = distance_many_serial(&pairs.source(), opts, &mut self.out, &mut self.stats)
             .expect("batch size validated by the scene");
-        keep_near(&self.kept, &self.out, pairs.as_slice(), memos, margin);
+        let found = (&self.kept[..], &self.out[..], pairs.as_slice());
+        keep_near(found, memos, margin, &mut self.nearest);
         self.found.clear();
         for (&(i, j), r) in pairs.as_slice().iter().zip(&self.out) {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
@@ -1057,13 +1061,12 @@ fn kernel_allowance(union: &Bounds) -> f64 {
 /// `pairs`) nearer than reach plus `margin` by the kernel's distances
 /// (`out`), nearest first, with their gaps beyond the reach less the
 /// allowance. A pair with a distance that is not a number keeps nothing:
-/// the body pair is culled in full next time.
+/// the body pair is culled in full next time. `near` is scratch.
 fn keep_near(
-    kept: &[Kept],
-    out: &[Closest],
-    pairs: &[(u32, u32)],
+    (kept, out, pairs): (&[Kept], &[Closest], &[(u32, u32)]),
     memos: &mut [PairMemo],
     margin: f64,
+    near: &mut Vec<(f64, (u32, u32))>,
 ) {
     for kept in kept {
         let memo = &mut memos[kept.memo];
@@ -1072,12 +1075,14 @@ fn keep_near(
             memo.budget = 0.0;
             continue;
         }
-        let mut near: Vec<(f64, (u32, u32))> = answers
-            .iter()
-            .zip(&pairs[kept.pairs.clone()])
-            .map(|(r, &p)| (r.distance - kept.reach - kept.allowance, p))
-            .filter(|&(gap, _)| gap < margin)
-            .collect();
+        near.clear();
+        near.extend(
+            answers
+                .iter()
+                .zip(&pairs[kept.pairs.clone()])
+                .map(|(r, &p)| (r.distance - kept.reach - kept.allowance, p))
+                .filter(|&(gap, _)| gap < margin),
+        );
         near.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
         memo.gaps.extend(near.iter().map(|x| x.0));
         memo.near.extend(near.iter().map(|x| x.1));
