@@ -9,6 +9,7 @@
 # the difference is the partitioner's alone. Counts, not times
 # (oversubscription does not change them). Prints a markdown table.
 # Usage: scripts/reuse-table.sh [STEPS]
+# (SCENES and PARTITIONERS, space-separated, narrow it down.)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -18,10 +19,10 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 tridem=target/release/tridem
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-scenes="collapse silo-offset mixed"
+scenes=${SCENES:-collapse silo-offset mixed}
 for scene in $scenes; do
   for ranks in 2 4; do
-    for p in $($tridem partition --list); do
+    for p in ${PARTITIONERS:-$($tridem partition --list)}; do
       for mode in reuse fresh; do
         flag=""
         [ "$mode" = fresh ] && flag=--fresh-partitions

@@ -27,13 +27,21 @@ fn main() {
     let shift: f64 = args.get(5).map_or(0.0, |s| s.parse().unwrap());
     // "fresh": every partitioning from scratch, not building on the last.
     let reuse = args.get(6).is_none_or(|s| s != "fresh");
+    // After the shift, an item costs this many times as much for each of
+    // its coordinates below 0.5: whichever axis a cut takes, its low side
+    // holds skew / (1 + skew) of the weight of uniform items.
+    let skew: f64 = args.get(7).map_or(1.0, |s| s.parse().unwrap());
 
     let spec = Spec::new(workload, n);
     let mut local = spec.initial(me, size);
     // Weighted items: ids divisible by 3 cost three times as much.
-    for it in &mut local.items {
-        it.weight = if it.id % 3 == 0 { 3.0 } else { 1.0 };
-    }
+    let weigh = |items: &mut [partition::Item], skew: f64| {
+        for it in items {
+            let low = it.point.iter().filter(|&&x| x < 0.5).count() as i32;
+            it.weight = skew.powi(low) * if it.id % 3 == 0 { 3.0 } else { 1.0 };
+        }
+    };
+    weigh(&mut local.items, 1.0);
     let mut part = backend
         .create(&world, partition::Setup { halo, reuse })
         .unwrap();
@@ -160,6 +168,7 @@ fn main() {
 
     if shift > 0.0 {
         spec.advance(&mut local, shift);
+        weigh(&mut local.items, skew);
         let owners = part.partition(&world, &local.items).unwrap();
         let (moved, ms) = migrate(&world, local, &owners);
         let mut total = 0u64;
@@ -170,5 +179,11 @@ fn main() {
         );
         out.kv("remigrated_items", total);
         out.kv("local_items_after", moved.len());
+        // The weight imbalance (max over mean) the repartitioning left.
+        let mine: f64 = moved.items.iter().map(|i| i.weight).sum();
+        let (mut most, mut sum) = (0.0f64, 0.0f64);
+        world.all_reduce_into(&mine, &mut most, mpi::collective::SystemOperation::max());
+        world.all_reduce_into(&mine, &mut sum, mpi::collective::SystemOperation::sum());
+        out.kv("imbalance_after", most * f64::from(size) / sum);
     }
 }

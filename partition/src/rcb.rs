@@ -28,6 +28,14 @@
 //! target weight is not inside it. Parts keep their numbers: the left half of
 //! a group goes to its lower ranks. So a repartitioning moves the items the
 //! cuts pass over, in proportion to the drift.
+//!
+//! An old cut whose split is still close to its target stays where it is
+//! (hysteresis, as Zoltan's `IMBALANCE_TOL` lets its RCB stop short of the
+//! median): then the items that drifted across it do not move at all. Close
+//! means within `reuse_slack` of each side's weight, scaled by the group's
+//! share of the ranks: a leaf's load is the product of its ancestors' splits,
+//! and these allowances, halving at each level, multiply to at most about
+//! 1 + 2 `reuse_slack` over the whole tree, whatever the number of ranks.
 
 use crate::comm::all_gather_v;
 use crate::cut_tree::{CutTree, Node};
@@ -59,6 +67,14 @@ pub fn keeps_axis(ext: &[f64; 3], dim: usize) -> bool {
     ext[dim] > 0.0 && ext[dim] >= KEEP_AXIS * longest
 }
 
+/// How the items exactly at a cut were dealt: `None` all went left (at or
+/// below the cut), `Some(last)` those with ids up to `last` did (`Some(None)`:
+/// none), see [`split_ties`].
+type Tie = Option<Option<u64>>;
+
+/// A previous cut a group may keep: its axis, its place, its tie.
+type OldCut = (usize, f64, Tie);
+
 /// Candidate cuts per histogram round.
 const BINS: usize = 256;
 
@@ -75,7 +91,14 @@ pub struct Rcb {
     /// Keep the previous cuts' axes and start from their positions when
     /// repartitioning.
     pub reuse_cuts: bool,
+    /// A reused cut is kept while both sides' weights are within this
+    /// fraction of their targets, for the top cut; a group of n of the P
+    /// ranks allows n / P of it (see the module doc).
+    pub reuse_slack: f64,
     tree: Option<CutTree>,
+    /// Per node of `tree`, how the items at its cut were dealt (see
+    /// [`split_ties`]), so that a kept cut deals them the same way again.
+    ties: Vec<Tie>,
 }
 
 impl Default for Rcb {
@@ -85,7 +108,9 @@ impl Default for Rcb {
             max_rounds: 12,
             reuse_margin: 0.02,
             reuse_cuts: true,
+            reuse_slack: 0.02,
             tree: None,
+            ties: Vec::new(),
         }
     }
 }
@@ -107,12 +132,16 @@ impl Rcb {
 
     fn bisect(&mut self, comm: &SimpleCommunicator, items: &[Item]) -> Vec<i32> {
         let previous = if self.reuse_cuts {
-            self.tree.take()
+            self.tree
+                .take()
+                .map(|t| (t, std::mem::take(&mut self.ties)))
         } else {
             None
         };
+        let previous = previous.as_ref().map(|(t, ties)| (t, &ties[..]));
         let mut level = Level {
             nodes: vec![Node::Leaf(0)],
+            ties: vec![None],
             group_of: vec![0; items.len()],
             groups: vec![Group {
                 node: 0,
@@ -127,7 +156,7 @@ impl Rcb {
             if active.is_empty() {
                 break;
             }
-            let mut searches = self.start_searches(comm, items, &level, &active, previous.as_ref());
+            let mut searches = self.start_searches(comm, items, &level, &active, previous);
             self.find_cuts(comm, items, &level.group_of, &active, &mut searches);
             split_ties(comm, items, &level.group_of, &active, &mut searches);
             level.split(items, &active, &searches);
@@ -135,6 +164,7 @@ impl Rcb {
         // Leaves carry their ranks; items take the rank of their group.
         let Level {
             nodes,
+            ties,
             group_of,
             groups,
         } = level;
@@ -146,6 +176,7 @@ impl Rcb {
             })
             .collect();
         self.tree = Some(CutTree { nodes });
+        self.ties = ties;
         owners
     }
 
@@ -158,7 +189,7 @@ impl Rcb {
         items: &[Item],
         level: &Level,
         active: &[usize],
-        previous: Option<&CutTree>,
+        previous: Option<(&CutTree, &[Tie])>,
     ) -> Vec<Search> {
         let ng = level.groups.len();
         let (lo, hi, w) = group_boxes(items, &level.group_of, ng);
@@ -174,16 +205,19 @@ impl Rcb {
             ..Search::default()
         };
         let mut searches = vec![settled; ng];
+        let mut olds = vec![None; ng];
         for &g in active {
             let ext: [f64; 3] = [0, 1, 2].map(|k| ghi[3 * g + k] - glo[3 * g + k]);
             let longest = longest_axis(&ext);
             let Group { node, r0, r1 } = level.groups[g];
             // The old cut, while its axis is still not much shorter than the
             // longest (see [`KEEP_AXIS`]).
-            let old = match previous.and_then(|t| t.nodes.get(node)) {
+            let old = match previous.and_then(|(t, _)| t.nodes.get(node)) {
                 Some(&Node::Cut { dim, value, .. }) if keeps_axis(&ext, dim) => Some((dim, value)),
                 _ => None,
             };
+            let tie = previous.and_then(|(_, ties)| ties.get(node).copied().flatten());
+            olds[g] = old.map(|(dim, value)| (dim, value, tie));
             let d = old.map_or(longest, |(dim, _)| dim);
             let (a, b) = (glo[3 * g + d], ghi[3 * g + d]);
             let full = if a <= b { (a, b) } else { (0.0, 0.0) };
@@ -206,6 +240,26 @@ impl Rcb {
                 done: a >= b || a.is_nan() || gw[g] == 0.0,
                 ..Search::default()
             };
+        }
+        // Every rank holds the same tree, so all take this branch or none.
+        if olds.iter().any(Option::is_some) {
+            let left = left_of_old_cuts(comm, items, &level.group_of, &olds);
+            for &g in active {
+                let Some((_, value, tie)) = olds[g] else {
+                    continue;
+                };
+                let Group { r0, r1, .. } = level.groups[g];
+                let share = f64::from(r1 - r0) / f64::from(comm.size());
+                let f = f64::from((r1 - r0) / 2) / f64::from(r1 - r0);
+                let slack = self.reuse_slack * share * f.min(1.0 - f) * gw[g];
+                let s = &mut searches[g];
+                if !s.done && (left[g] - s.target).abs() <= slack {
+                    s.cut = value;
+                    s.tie = tie;
+                    s.done = true;
+                    s.converged = true;
+                }
+            }
         }
         searches
     }
@@ -239,6 +293,8 @@ impl Rcb {
 /// The groups of one level of the tree, the nodes so far, and each item's group.
 struct Level {
     nodes: Vec<Node>,
+    /// Per node, how the items at its cut were dealt.
+    ties: Vec<Tie>,
     group_of: Vec<u32>,
     groups: Vec<Group>,
 }
@@ -254,7 +310,9 @@ impl Level {
             let left = self.nodes.len();
             self.nodes.push(Node::Leaf(r0));
             self.nodes.push(Node::Leaf(mid));
+            self.ties.extend([None, None]);
             let s = &searches[g];
+            self.ties[node] = s.tie;
             self.nodes[node] = Node::Cut {
                 dim: s.dim,
                 value: s.cut,
@@ -284,12 +342,7 @@ impl Level {
             .zip(items.par_iter())
             .for_each(|(g, it)| {
                 if let Some((gl, d, c, tie)) = split[*g as usize] {
-                    let left = match tie {
-                        // At the cut, ids up to the last one dealt left.
-                        Some(last) if it.point[d] == c => last.is_some_and(|l| it.id <= l),
-                        _ => it.point[d] <= c,
-                    };
-                    *g = if left { gl } else { gl + 1 };
+                    *g = if goes_left(it, d, c, tie) { gl } else { gl + 1 };
                 }
             });
     }
@@ -311,7 +364,7 @@ struct Search {
     converged: bool,
     /// Items at the cut split between the halves: the last id dealt left
     /// (`None`: none), see [`split_ties`].
-    tie: Option<Option<u64>>,
+    tie: Tie,
 }
 
 impl Search {
@@ -429,6 +482,37 @@ fn split_ties(
         s.cut = c;
         s.tie = Some(last);
     }
+}
+
+/// Whether `it` goes to the left of the cut at `c` on axis `d`: at or below
+/// it, but of the items exactly at a cut whose ties were dealt (`tie`), only
+/// those with ids up to the last one dealt left.
+fn goes_left(it: &Item, d: usize, c: f64, tie: Tie) -> bool {
+    match tie {
+        Some(last) if it.point[d] == c => last.is_some_and(|l| it.id <= l),
+        _ => it.point[d] <= c,
+    }
+}
+
+/// Per group, the weight of its items (over all ranks) at or below its old
+/// cut, for the groups that have one (collective).
+fn left_of_old_cuts(
+    comm: &SimpleCommunicator,
+    items: &[Item],
+    group_of: &[u32],
+    olds: &[Option<OldCut>],
+) -> Vec<f64> {
+    let mut local = vec![0.0f64; olds.len()];
+    for (it, &g) in items.iter().zip(group_of) {
+        if let Some((d, value, tie)) = olds[g as usize] {
+            if goes_left(it, d, value, tie) {
+                local[g as usize] += it.weight;
+            }
+        }
+    }
+    let mut global = vec![0.0f64; olds.len()];
+    comm.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
+    global
 }
 
 /// `h[g * (BINS + 1) + k]`: the weight of this rank's items of group g in

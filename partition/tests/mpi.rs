@@ -201,6 +201,42 @@ fn reuse_follows_the_drift_when_the_domain_changes_shape() {
     );
 }
 
+/// The native RCB's hysteresis: a reused cut stays where it is while each
+/// side's weight is within its slack of the target, so a small shift of the
+/// work moves no item; a shift beyond the slack moves the cut. Either way the
+/// weight imbalance left is within the slack's bound over the whole tree,
+/// 1 + 2 `reuse_slack` (plus one item's weight of granularity).
+#[test]
+fn a_reused_cut_stays_within_its_slack_and_follows_work_beyond_it() {
+    let n = 8000u64;
+    let slack = partition::rcb::Rcb::default().reuse_slack;
+    let bound = 1.0 + 2.0 * slack + 0.005;
+    // An item costs `skew` times more for each coordinate below 0.5, so a
+    // cut's low side holds skew / (1 + skew) of its group's weight.
+    let repartition = |ranks: usize, skew: f64| -> (u64, f64) {
+        let r = MpiRun::new(example_binary("partition_check"))
+            .ranks(ranks)
+            .args(["rcb", "uniform", &n.to_string(), "0.005", "0.01", "reuse"])
+            .args([skew.to_string()])
+            .run()
+            .unwrap_or_else(|e| panic!("{ranks} ranks, skew {skew}: {e}"));
+        assert_eq!(sum::<usize>(&r, "local_items_after"), n as usize);
+        let rep = &r.reports[0];
+        (rep.parse("remigrated_items"), rep.parse("imbalance_after"))
+    };
+    for ranks in [2, 3, 4] {
+        // Each low side's share grows by slack / 8 of its group: within the
+        // allowance of slack / 2 at the top cut and slack / 4 below it.
+        let (moved, imbalance) = repartition(ranks, 1.0 + 0.5 * slack);
+        assert_eq!(moved, 0, "{ranks} ranks: a cut within its slack moved");
+        assert!(imbalance <= bound, "{ranks} ranks: kept at {imbalance}");
+        // The low side holds 0.6 of the whole: the cut follows the work.
+        let (moved, imbalance) = repartition(ranks, 1.5);
+        assert!(moved > 0, "{ranks} ranks: the cut stayed");
+        assert!(imbalance <= bound, "{ranks} ranks: moved to {imbalance}");
+    }
+}
+
 /// Byte exchanges in which some ranks send or receive nothing: an empty
 /// byte buffer's dangling pointer is Open MPI's MPI_IN_PLACE, which once made
 /// a migration abort (found when METIS gave every item to one rank).
