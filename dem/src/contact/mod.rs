@@ -865,9 +865,26 @@ impl Task {
                 continue;
             }
             if !holds {
+                let was_apart = memo.near.is_empty();
                 memo.budget = 0.0;
                 memo.near.clear();
                 memo.gaps.clear();
+                // Apart at the last look, along a direction that likely still
+                // separates them: the whole bodies' slab along it, from their
+                // vertices and poses, settles most such pairs with no
+                // triangle read (nor filled).
+                if remember && was_apart && memo.hint != DVec3::ZERO {
+                    let reach = halos[bodies[0]] + halos[bodies[1]];
+                    let clearance = whole_bodies_clearance(world, bodies, reach, memo.hint, radii);
+                    if clearance > 0.0 {
+                        memo.poses = bodies.map(pose);
+                        memo.budget = clearance;
+                        self.body_pairs += 1;
+                        self.hulls_apart += 1;
+                        self.work.push((g as u32, 0));
+                        continue;
+                    }
+                }
             }
             let fa = set.fill(g, world, &mut self.vertices);
             let fb = set.fill(h, world, &mut self.vertices);
@@ -934,7 +951,8 @@ impl Task {
                 // The whole parts' clearance along the certificate's
                 // direction: the pair's rest until the bodies use it up.
                 if remember {
-                    memo.budget = self.hulls.clearance([&a, &b], reach, memo.hint);
+                    let on = (world, set);
+                    memo.budget = self.hulls.clearance(on, [&a, &b], reach, memo.hint, radii);
                 }
                 continue;
             }
@@ -1121,16 +1139,81 @@ impl HullScratch {
     }
 
     /// After [`Self::apart`] found the parts apart along `d`: by how much
-    /// more than `reach` all of their triangles are apart along it.
-    fn clearance(&self, parts: [&Part; 2], reach: f64, d: DVec3) -> f64 {
+    /// more than `reach` all of their triangles are apart along it. A part
+    /// that is a whole body is read from its mesh's vertices and pose (each
+    /// vertex once; `radii` the shapes' radii), any other from its
+    /// triangles.
+    fn clearance(
+        &self,
+        on: (&World, PassSet),
+        parts: [&Part; 2],
+        reach: f64,
+        d: DVec3,
+        radii: &[f64],
+    ) -> f64 {
         let Some(&origin) = self.corners[0].first() else {
             return 0.0;
         };
+        let (world, set) = on;
         let union = parts[0].bounds.union(&parts[1].bounds);
         let extent = (union.hi - union.lo).length();
-        let [a, b] = parts.map(|p| p.triangles().iter().map(|t| &t.vertices));
-        separation::clearance(a, b, d, origin, reach, extent)
+        let side = |part: &Part, upper: bool| {
+            let extreme = separation::Extreme { d, origin, upper };
+            match whole_body(world, set, part) {
+                Some(body) => {
+                    let b = &world.bodies[body];
+                    let mesh = &world.shapes[b.shape];
+                    let rotation = glam::DMat3::from_quat(b.q);
+                    extreme.of_posed(&mesh.vertices, b.x, rotation, radii[b.shape])
+                }
+                None => extreme.of_triangles(part.triangles().iter().map(|t| &t.vertices)),
+            }
+        };
+        let (hi_a, lo_b) = (side(parts[0], true), side(parts[1], false));
+        separation::clearance(hi_a, lo_b, d, reach, extent)
     }
+}
+
+/// By how much more than `reach` two bodies (all of their meshes' points, at
+/// their poses) are apart along `d`, as [`separation::clearance`] measures
+/// it; zero or less: not shown apart along `d`. A part of a body in a
+/// triangle set holds some of those points, so this holds for it too.
+fn whole_bodies_clearance(
+    world: &World,
+    bodies: [usize; 2],
+    reach: f64,
+    d: DVec3,
+    radii: &[f64],
+) -> f64 {
+    let [a, b] = bodies.map(|i| &world.bodies[i]);
+    let origin = a.x;
+    let side = |body: &crate::body::Body, upper: bool| {
+        let extreme = separation::Extreme { d, origin, upper };
+        let rotation = glam::DMat3::from_quat(body.q);
+        extreme.of_posed(
+            &world.shapes[body.shape].vertices,
+            body.x,
+            rotation,
+            radii[body.shape],
+        )
+    };
+    // Bounds the distance between any two of their points.
+    let extent = (b.x - a.x).length() + radii[a.shape] + radii[b.shape];
+    separation::clearance(side(a, true), side(b, false), d, reach, extent)
+}
+
+/// The body whose triangles `part` holds, if it holds all of them: the set's
+/// parts are sorted by key, so n triangles from index 0 to n − 1 of a mesh of
+/// n are the whole mesh, in mesh order.
+fn whole_body(world: &World, set: PassSet, part: &Part) -> Option<usize> {
+    let first = part.range().next()?;
+    let key = set.key(first);
+    let body = key.body as usize;
+    let n = part.triangles().len();
+    let whole = n == world.shapes[world.bodies[body].shape].triangles.len()
+        && key.index == 0
+        && set.key(first + n - 1).index as usize == n - 1;
+    whole.then_some(body)
 }
 
 /// The corners of triangles `ids` of `part` into `out`, each mesh vertex
@@ -1154,12 +1237,8 @@ fn gather_corners(
     if seen.len() < mesh.vertices.len() {
         seen.resize(mesh.vertices.len(), 0);
     }
-    let n = part.triangles().len();
-    // A whole body's triangles are in mesh order (a set's parts are sorted
-    // by key): no key need be read.
-    let whole = n == mesh.triangles.len()
-        && set.key(first).index == 0
-        && set.key(first + n - 1).index as usize == n - 1;
+    // A whole body's triangles are in mesh order: no key need be read.
+    let whole = whole_body(world, set, part).is_some();
     let triangles = part.triangles();
     for &i in ids {
         let k = i as usize - first;

@@ -53,7 +53,7 @@
 //! hull is a looser bound and more pairs go on to the triangles.
 
 use crate::distance::Triangle;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 /// Relative size of the rounding allowance (see the module doc).
 pub(crate) const MARGIN: f64 = 1e-9;
@@ -97,45 +97,102 @@ pub(crate) fn apart(a: &[DVec3], b: &[DVec3], reach: f64, extent: f64, hint: &mu
     verdict
 }
 
-/// How much farther apart than `reach` conv `a` and conv `b` (the corners
-/// of two sets of triangles) certainly are, as the slab normal to `d`
-/// shows: gap(d) / |d| − reach, less the rounding allowance of [`apart`]
-/// (`origin` a point near both, `extent` as there); zero or less when the
-/// slab shows no clearance. Two bodies that have moved, together, less than
-/// this since are still farther apart than `reach`: each point moved at most
-/// its body's travel, and the slab between them narrowed by at most the sum.
-pub(crate) fn clearance<'t>(
-    a: impl Iterator<Item = &'t Triangle>,
-    b: impl Iterator<Item = &'t Triangle>,
-    d: DVec3,
-    origin: DVec3,
-    reach: f64,
-    extent: f64,
-) -> f64 {
+/// How much farther apart than `reach` conv A and conv B certainly are, as
+/// the slab normal to `d` shows: gap(d) / |d| − reach, less the rounding
+/// allowance of [`apart`] (`extent` as there), from `hi_a`, the largest
+/// d · (a − origin) over A, and `lo_b`, the smallest d · (b − origin) over B
+/// (each from [`Extreme`], with its own rounding already allowed for; the
+/// origin a point near both); zero or less when the slab shows no
+/// clearance. Two bodies that have moved, together, less than this since are
+/// still farther apart than `reach`: each point moved at most its body's
+/// travel, and the slab between them narrowed by at most the sum.
+pub(crate) fn clearance(hi_a: f64, lo_b: f64, d: DVec3, reach: f64, extent: f64) -> f64 {
     let length = d.length();
     if !(length > 0.0 && length.is_finite()) {
         return 0.0;
     }
-    // One running extreme per corner: three chains the loop need not wait on.
-    let mut hi_a = [f64::NEG_INFINITY; 3];
-    for t in a {
-        for k in 0..3 {
-            hi_a[k] = hi_a[k].max(d.dot(t[k] - origin));
-        }
-    }
-    let mut lo_b = [f64::INFINITY; 3];
-    for t in b {
-        for k in 0..3 {
-            lo_b[k] = lo_b[k].min(d.dot(t[k] - origin));
-        }
-    }
-    let hi_a = hi_a[0].max(hi_a[1]).max(hi_a[2]);
-    let lo_b = lo_b[0].min(lo_b[1]).min(lo_b[2]);
     let clearance = (lo_b - hi_a) / length - (reach + MARGIN * (extent + reach));
     if clearance.is_finite() {
         clearance
     } else {
         0.0
+    }
+}
+
+/// One side of the slab of [`clearance`]: the extreme of d · (p − origin)
+/// over a body's points, the largest (`upper`) or the smallest.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Extreme {
+    pub d: DVec3,
+    pub origin: DVec3,
+    pub upper: bool,
+}
+
+impl Extreme {
+    /// Over the corners of `triangles`.
+    pub(crate) fn of_triangles<'t>(&self, triangles: impl Iterator<Item = &'t Triangle>) -> f64 {
+        let (d, origin) = (self.d, self.origin);
+        // One running extreme per corner: three chains the loop need not
+        // wait on.
+        let mut x = [if self.upper {
+            f64::NEG_INFINITY
+        } else {
+            f64::INFINITY
+        }; 3];
+        for t in triangles {
+            for k in 0..3 {
+                let h = d.dot(t[k] - origin);
+                x[k] = if self.upper { x[k].max(h) } else { x[k].min(h) };
+            }
+        }
+        if self.upper {
+            x[0].max(x[1]).max(x[2])
+        } else {
+            x[0].min(x[1]).min(x[2])
+        }
+    }
+
+    /// Over the world points `position + rotation v` of a rigid body's
+    /// vertices `local` (each at most `radius` from its origin), as d ·
+    /// (position − origin) + (rotationᵀ d) · v: each vertex once, where the
+    /// triangles have each about six times. The points the triangle set
+    /// holds are those sums rounded, so the result is widened by a bound on
+    /// the difference: 32 ε |d| (|position| + |position − origin| +
+    /// 2 radius), twice the sum of the sums' and the dot products' own
+    /// rounding.
+    pub(crate) fn of_posed(
+        &self,
+        local: &[DVec3],
+        position: DVec3,
+        rotation: DMat3,
+        radius: f64,
+    ) -> f64 {
+        let (d, upper) = (self.d, self.upper);
+        let along = rotation.transpose() * d;
+        let mut x = [if upper {
+            f64::NEG_INFINITY
+        } else {
+            f64::INFINITY
+        }; 4];
+        let mut chunks = local.chunks_exact(4);
+        for c in &mut chunks {
+            for k in 0..4 {
+                let h = along.dot(c[k]);
+                x[k] = if upper { x[k].max(h) } else { x[k].min(h) };
+            }
+        }
+        for v in chunks.remainder() {
+            let h = along.dot(*v);
+            x[0] = if upper { x[0].max(h) } else { x[0].min(h) };
+        }
+        let rel = position - self.origin;
+        let slack =
+            32.0 * f64::EPSILON * d.length() * (position.length() + rel.length() + 2.0 * radius);
+        if upper {
+            d.dot(rel) + x[0].max(x[1]).max(x[2].max(x[3])) + slack
+        } else {
+            d.dot(rel) + x[0].min(x[1]).min(x[2].min(x[3])) - slack
+        }
     }
 }
 
@@ -534,8 +591,16 @@ mod tests {
                 if !apart(&sa, &sb, reach, extent(&sa, &sb), &mut d) {
                     continue;
                 }
-                let (ta_refs, tb_refs) = (ta.iter(), tb.iter());
-                let c = clearance(ta_refs, tb_refs, d, sa[0], reach, extent(&sa, &sb));
+                let side = |upper| Extreme {
+                    d,
+                    origin: sa[0],
+                    upper,
+                };
+                let (hi_a, lo_b) = (
+                    side(true).of_triangles(ta.iter()),
+                    side(false).of_triangles(tb.iter()),
+                );
+                let c = clearance(hi_a, lo_b, d, reach, extent(&sa, &sb));
                 let gap = nearest(&ta, &tb);
                 assert!(c <= gap - reach, "seed {seed} scale {scale}: {c} of {gap}");
                 if c <= 0.0 {
@@ -552,6 +617,54 @@ mod tests {
             }
         }
         assert!(shown > 30, "{shown}");
+    }
+
+    /// A rigid body's extreme along a direction from its local vertices and
+    /// pose bounds the extreme over its world points as the triangle set
+    /// rounds them (x + R v), on the right side, and is within a few units
+    /// of rounding of it: at every scale, turned, and far from the origin.
+    #[test]
+    fn a_posed_extreme_bounds_the_rounded_world_points_and_is_tight() {
+        for seed in 0..30u64 {
+            let local = cloud(DVec3::ZERO, 1.0, 40, seed);
+            let radius = local.iter().map(|v| v.length()).fold(0.0, f64::max);
+            let q = glam::DQuat::from_axis_angle(
+                DVec3::new(1.0, 0.3 * seed as f64, -0.7).normalize(),
+                0.37 * seed as f64,
+            );
+            let rotation = DMat3::from_quat(q);
+            for (scale, far) in [(1.0, 0.0), (1e-6, 1e4), (1e6, 1e4), (1.0, 1e7)] {
+                let local: Vec<DVec3> = local.iter().map(|v| *v * scale).collect();
+                let position = DVec3::new(far, -0.5 * far, 0.25 * far) * scale;
+                let world: Vec<DVec3> = local.iter().map(|v| position + rotation * *v).collect();
+                let origin = world[(seed % 40) as usize] + DVec3::splat(0.1 * scale);
+                let d = DVec3::new(0.2, -1.0, 0.4 + 0.1 * seed as f64) * (seed as f64 + 0.5);
+                for upper in [true, false] {
+                    let side = Extreme { d, origin, upper };
+                    let posed = side.of_posed(&local, position, rotation, radius * scale);
+                    let dots = world.iter().map(|p| d.dot(*p - origin));
+                    let exact = if upper {
+                        dots.fold(f64::NEG_INFINITY, f64::max)
+                    } else {
+                        dots.fold(f64::INFINITY, f64::min)
+                    };
+                    let wider = if upper {
+                        posed >= exact
+                    } else {
+                        posed <= exact
+                    };
+                    let unit = f64::EPSILON * d.length() * (position.length() + radius * scale);
+                    assert!(
+                        wider,
+                        "seed {seed} scale {scale} far {far}: {posed} vs {exact}"
+                    );
+                    assert!(
+                        (posed - exact).abs() <= 200.0 * unit,
+                        "seed {seed} scale {scale} far {far}: {posed} vs {exact}, unit {unit}"
+                    );
+                }
+            }
+        }
     }
 
     /// Touching and overlapping hulls are never apart, at any reach.
