@@ -23,7 +23,9 @@
 //!    examined are exactly those the broad phase would have returned.
 //! 2. Triangle culling: a listed pair whose hulls were shown apart with a
 //!    clearance that the bodies' displacements since have not used up is
-//!    left out (see `PairMemo`), and a listed pair culled in full keeps its
+//!    left out (see `PairMemo`); once they have, it is first tested again
+//!    along the same direction on the whole bodies, from their vertices and
+//!    poses, with no triangle read. A listed pair culled in full keeps its
 //!    triangle pairs within reach plus a margin, examined alone (no culling)
 //!    while the bodies' displacements since stay under it (`PairMemo::near`);
 //!    otherwise only triangles whose inflated boxes overlap the other
