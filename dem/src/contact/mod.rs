@@ -1162,12 +1162,7 @@ impl HullScratch {
         let side = |part: &Part, upper: bool| {
             let extreme = separation::Extreme { d, origin, upper };
             match whole_body(world, set, part) {
-                Some(body) => {
-                    let b = &world.bodies[body];
-                    let mesh = &world.shapes[b.shape];
-                    let rotation = glam::DMat3::from_quat(b.q);
-                    extreme.of_posed(&mesh.vertices, b.x, rotation, radii[b.shape])
-                }
+                Some(body) => body_extreme(world, body, extreme, radii),
                 None => extreme.of_triangles(part.triangles().iter().map(|t| &t.vertices)),
             }
         };
@@ -1189,19 +1184,30 @@ fn whole_bodies_clearance(
 ) -> f64 {
     let [a, b] = bodies.map(|i| &world.bodies[i]);
     let origin = a.x;
-    let side = |body: &crate::body::Body, upper: bool| {
-        let extreme = separation::Extreme { d, origin, upper };
-        let rotation = glam::DMat3::from_quat(body.q);
-        extreme.of_posed(
-            &world.shapes[body.shape].vertices,
-            body.x,
-            rotation,
-            radii[body.shape],
-        )
+    let side = |body: usize, upper: bool| {
+        body_extreme(world, body, separation::Extreme { d, origin, upper }, radii)
     };
     // Bounds the distance between any two of their points.
     let extent = (b.x - a.x).length() + radii[a.shape] + radii[b.shape];
-    separation::clearance(side(a, true), side(b, false), d, reach, extent)
+    separation::clearance(
+        side(bodies[0], true),
+        side(bodies[1], false),
+        d,
+        reach,
+        extent,
+    )
+}
+
+/// `extreme` over all of body `body`'s mesh points at its pose.
+fn body_extreme(world: &World, body: usize, extreme: separation::Extreme, radii: &[f64]) -> f64 {
+    let b = &world.bodies[body];
+    let rotation = glam::DMat3::from_quat(b.q);
+    extreme.of_posed(
+        &world.shapes[b.shape].vertices,
+        b.x,
+        rotation,
+        radii[b.shape],
+    )
 }
 
 /// The body whose triangles `part` holds, if it holds all of them: the set's
