@@ -238,6 +238,10 @@ pub struct Detector {
     lists: [Vec<(usize, usize)>; 3],
     /// Per pair of the first two lists: what its last examination showed.
     memos: [Vec<PairMemo>; 2],
+    /// Per pair of the first two lists: its bodies' ids, by which the next
+    /// list finds the memos that still hold (see `carry_memos`); `None`:
+    /// its memo is not carried.
+    listed_ids: [Vec<Option<(u32, u32)>>; 2],
     /// Per body: body pairs and triangle pairs examined with it as the first
     /// body, since [`Detector::take_work`].
     work: Vec<[u64; 2]>,
@@ -446,10 +450,13 @@ impl Detector {
             let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
             let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
             split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
-            for (memos, list) in self.memos.iter_mut().zip(&self.lists) {
-                memos.clear();
-                memos.resize(list.len(), PairMemo::default());
-            }
+            carry_memos(
+                world,
+                views[0].groups(),
+                &self.lists,
+                &mut self.memos,
+                &mut self.listed_ids,
+            );
             self.times.broad_phase = seconds_since(start);
             stats.broad_phases = 1;
             self.travel = 0.0;
@@ -695,6 +702,62 @@ fn split_pairs(
         } else if (roles[a], roles[b]) == (Role::Ghost, Role::Own) {
             lists[2].push((g, h));
         }
+    }
+}
+
+/// New memos for new `lists` (of `groups`' indices): a pair listed before
+/// (by its bodies' ids, `listed_ids`, set anew here) whose last examination
+/// showed its bodies apart with a clearance keeps it, with the poses it
+/// holds from and its separating direction: none depends on the list. Kept
+/// triangle pairs (set indices) are not carried, nor the hints of pairs
+/// that were not apart (GJK started from a stale direction examines more
+/// triangle pairs than from the centroids). Only pairs of bodies whose
+/// triangles the set holds whole, in one part, carry: a rank's share of an
+/// obstacle changes with its region, and a clearance from the old share
+/// says nothing of the new one.
+fn carry_memos(
+    world: &World,
+    groups: &[BodyGroup],
+    lists: &[Vec<(usize, usize)>; 3],
+    memos: &mut [Vec<PairMemo>; 2],
+    listed_ids: &mut [Vec<Option<(u32, u32)>>; 2],
+) {
+    let id = |g: usize| world.id(groups[g].body as usize);
+    let whole = |g: usize| {
+        let group = &groups[g];
+        let n = world.shapes[world.bodies[group.body as usize].shape]
+            .triangles
+            .len();
+        let (owned, ghost) = (group.owned.len(), group.ghost.len());
+        (owned, ghost) == (n, 0) || (owned, ghost) == (0, n)
+    };
+    for ((memos, ids), list) in memos.iter_mut().zip(listed_ids.iter_mut()).zip(lists) {
+        let before: std::collections::HashMap<(u32, u32), usize> = ids
+            .iter()
+            .enumerate()
+            .filter_map(|(k, p)| p.map(|p| (p, k)))
+            .collect();
+        let old = std::mem::take(memos);
+        ids.clear();
+        ids.extend(
+            list.iter()
+                .map(|&(g, h)| (whole(g) && whole(h)).then(|| (id(g), id(h)))),
+        );
+        memos.extend(ids.iter().map(|p| {
+            let found = p.and_then(|p| before.get(&p));
+            let Some(m) = found.and_then(|&k| old.get(k)) else {
+                return PairMemo::default();
+            };
+            if !(m.near.is_empty() && m.budget > 0.0) {
+                return PairMemo::default();
+            }
+            PairMemo {
+                hint: m.hint,
+                budget: m.budget,
+                poses: m.poses,
+                ..PairMemo::default()
+            }
+        }));
     }
 }
 
