@@ -73,6 +73,7 @@ pub fn half_kick(b: &mut Body, force: DVec3, torque: DVec3, h: f64, rotation: bo
 /// 2 |r| sin(θ/2) = 2 |r| |v| for v the vector part of the relative
 /// quaternion. The margins cover the rounding of these terms and of the
 /// world vertices computed at either pose.
+#[inline]
 pub fn travel_bound(before: (DVec3, DQuat), after: &Body, radius: f64) -> f64 {
     let (x, q) = before;
     let turn = after.q * q.conjugate();
