@@ -4,8 +4,9 @@
 //! every step. The body pairs it examines are the broad phase's, less some
 //! that a listed pair's earlier hull test showed still apart. (How many
 //! triangle pairs reach the kernel may differ: the hull test starts from the
-//! direction that last separated a listed pair, and a list rebuilt forgets
-//! it.)
+//! direction that last separated a listed pair, and a list rebuilt keeps it
+//! only for the pairs that were apart.) Without a skin, the detection keeps
+//! nothing from one step to the next: the reference.
 mod common;
 
 use dem::contact::Culling;

@@ -450,12 +450,15 @@ impl Detector {
             let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
             let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
             split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
+            // Without a skin the detection keeps no memory from step to
+            // step: it is the reference the list is checked against.
             carry_memos(
                 world,
                 views[0].groups(),
                 &self.lists,
                 &mut self.memos,
                 &mut self.listed_ids,
+                self.skin > 0.0,
             );
             self.times.broad_phase = seconds_since(start);
             stats.broad_phases = 1;
@@ -714,13 +717,14 @@ fn split_pairs(
 /// triangle pairs than from the centroids). Only pairs of bodies whose
 /// triangles the set holds whole, in one part, carry: a rank's share of an
 /// obstacle changes with its region, and a clearance from the old share
-/// says nothing of the new one.
+/// says nothing of the new one. Nothing is carried unless `carry`.
 fn carry_memos(
     world: &World,
     groups: &[BodyGroup],
     lists: &[Vec<(usize, usize)>; 3],
     memos: &mut [Vec<PairMemo>; 2],
     listed_ids: &mut [Vec<Option<(u32, u32)>>; 2],
+    carry: bool,
 ) {
     let id = |g: usize| world.id(groups[g].body as usize);
     let whole = |g: usize| {
@@ -741,7 +745,7 @@ fn carry_memos(
         ids.clear();
         ids.extend(
             list.iter()
-                .map(|&(g, h)| (whole(g) && whole(h)).then(|| (id(g), id(h)))),
+                .map(|&(g, h)| (carry && whole(g) && whole(h)).then(|| (id(g), id(h)))),
         );
         memos.extend(ids.iter().map(|p| {
             let found = p.and_then(|p| before.get(&p));
