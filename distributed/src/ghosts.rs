@@ -23,7 +23,7 @@
 //! on the ghost travel back to the ghost's owner ([`return_terms`]), which
 //! sums them in one process's order (see `forces`).
 
-use crate::records::{BodyRecord, Motion, TermRecord};
+use crate::records::{bytes, bytes_mut, from_bytes, BodyRecord, Motion, TermRecord};
 use dem::contact::Bounds;
 use dem::world::World;
 use glam::DVec3;
@@ -287,7 +287,7 @@ pub fn exchange_motions<R>(
             .map(|(b, &(r, _))| {
                 Some(comm.process_at_rank(r).immediate_receive_into_with_tag(
                     scope,
-                    &mut b[..],
+                    bytes_mut(&mut b[..]),
                     MOTION_TAG,
                 ))
             })
@@ -295,7 +295,7 @@ pub fn exchange_motions<R>(
         for (b, &(r, _)) in outbox.iter().zip(&lists.send) {
             requests.push(Some(comm.process_at_rank(r).immediate_send_with_tag(
                 scope,
-                &b[..],
+                bytes(&b[..]),
                 MOTION_TAG,
             )));
         }
@@ -335,7 +335,8 @@ pub fn exchange_motions<R>(
 /// Sends the force terms on other ranks' particles computed here
 /// (`outgoing`: per rank, its terms), runs `meanwhile`, then receives the
 /// terms on this rank's particles from the ranks in `incoming`. Returns what
-/// arrived and the seconds spent waiting for it. Both sides know from their
+/// arrived (an error for a message that is not whole term records: a bug)
+/// and the seconds spent waiting for it. Both sides know from their
 /// neighbour lists which ranks exchange terms (see `term_peers`), so a
 /// message goes only where a pair across the cut may be in contact.
 pub fn return_terms(
@@ -343,25 +344,34 @@ pub fn return_terms(
     outgoing: &[(i32, Vec<TermRecord>)],
     incoming: &[i32],
     meanwhile: impl FnOnce(),
-) -> (Vec<TermRecord>, f64) {
-    let mut arrived = Vec::new();
+) -> (Result<Vec<TermRecord>, String>, f64) {
+    let mut arrived = Ok(Vec::new());
     let mut wait = 0.0;
     mpi::request::scope(|scope| {
         let sends: Vec<_> = outgoing
             .iter()
             .map(|(r, terms)| {
                 comm.process_at_rank(*r)
-                    .immediate_send_with_tag(scope, &terms[..], TERM_TAG)
+                    .immediate_send_with_tag(scope, bytes(&terms[..]), TERM_TAG)
             })
             .collect();
         meanwhile();
         let start = Instant::now();
         for &r in incoming {
-            let (terms, _) = comm
+            let (message, _) = comm
                 .process_at_rank(r)
                 .matched_probe_with_tag(TERM_TAG)
-                .matched_receive_vec::<TermRecord>();
-            arrived.extend(terms);
+                .matched_receive_vec::<u8>();
+            match (from_bytes::<TermRecord>(&message), &mut arrived) {
+                (Some(terms), Ok(all)) => all.extend(terms),
+                (None, _) => {
+                    arrived = Err(format!(
+                        "a force-term message of {} bytes from rank {r}",
+                        message.len()
+                    ))
+                }
+                (Some(_), Err(_)) => {}
+            }
         }
         for s in sends {
             s.wait();

@@ -1,5 +1,15 @@
 //! What travels between ranks, as typed MPI records.
+//!
+//! The records of every step (a ghost's [`Motion`], a [`TermRecord`]) travel
+//! as their bytes ([`bytes`], [`bytes_mut`], [`from_bytes`]): they are plain
+//! data, `#[repr(C)]` with no padding (`bytemuck::Pod`, checked when the
+//! crate compiles), so a message is one contiguous block that MPI copies as
+//! it is. Sent as MPI struct types, the same messages went through Open
+//! MPI's element-by-element packing on both sides, at every step. The ranks
+//! of one run share a byte order (MPI does not convert bytes): the same
+//! binary on one cluster's nodes.
 
+use bytemuck::{Pod, Zeroable};
 use dem::body::Body;
 use dem::checkpoint::BodyState;
 use dem::effects::ForceTerm;
@@ -7,8 +17,28 @@ use dem::frame::FrameContact;
 use glam::{DMat3, DQuat, DVec3};
 use mpi::traits::Equivalence;
 
+/// The bytes of `records`, to send as one contiguous message.
+pub fn bytes<T: Pod>(records: &[T]) -> &[u8] {
+    bytemuck::cast_slice(records)
+}
+
+/// The bytes of `records`, to receive into.
+pub fn bytes_mut<T: Pod>(records: &mut [T]) -> &mut [u8] {
+    bytemuck::cast_slice_mut(records)
+}
+
+/// The records of a received message, or `None` if its length is not a
+/// whole number of them (a message of another kind: a bug).
+pub fn from_bytes<T: Pod>(message: &[u8]) -> Option<Vec<T>> {
+    message
+        .len()
+        .is_multiple_of(std::mem::size_of::<T>())
+        .then(|| bytemuck::pod_collect_to_vec(message))
+}
+
 /// A body's motion: what a ghost copy needs each step.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence, Pod, Zeroable)]
 pub struct Motion {
     pub x: [f64; 3],
     pub q: [f64; 4],
@@ -114,7 +144,8 @@ pub type TermKey = [u64; 5];
 
 /// One term of the force on a body owned by the receiving rank, computed
 /// where the contact it acts at was (see `forces`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence)]
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Equivalence, Pod, Zeroable)]
 pub struct TermRecord {
     /// The body's id.
     pub body: u64,

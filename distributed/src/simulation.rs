@@ -718,7 +718,7 @@ impl<'c> DistributedSimulation<'c> {
         });
         self.metrics.return_wait_seconds += wait;
         let owned_index = |id: u32| local.index_of(id).filter(|&i| local.roles[i] == Role::Own);
-        match arrived(&received, owned_index) {
+        match received.and_then(|r| arrived(&r, owned_index)) {
             Ok(terms) => mine.extend(terms),
             Err(why) => {
                 eprintln!("tridem: internal error on rank {}: {why}", self.comm.rank());
