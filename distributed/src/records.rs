@@ -243,6 +243,45 @@ mod tests {
     use super::*;
 
     #[test]
+    fn records_read_back_from_their_bytes_to_the_bit_and_a_torn_message_is_refused() {
+        let motions = [
+            Motion {
+                x: [0.1, -2.0, 1e-300],
+                q: [0.1, 0.2, 0.3, -0.0],
+                v: [f64::MIN_POSITIVE, 5e-7, -3.0],
+                l: [1e-9, f64::MAX, -4.0],
+                out: 2,
+            },
+            Motion::default(),
+        ];
+        let sent = bytes(&motions[..]).to_vec();
+        assert_eq!(sent.len(), 2 * 112, "13 numbers and the flags, no padding");
+        let back: Vec<Motion> = from_bytes(&sent).expect("whole records");
+        let bits = |m: &Motion| {
+            let mut v: Vec<u64> = [m.x.as_slice(), &m.q, &m.v, &m.l]
+                .concat()
+                .iter()
+                .map(|x| x.to_bits())
+                .collect();
+            v.push(m.out);
+            v
+        };
+        assert_eq!(
+            back.iter().map(bits).collect::<Vec<_>>(),
+            motions.iter().map(bits).collect::<Vec<_>>()
+        );
+        let mut into = [Motion::default(); 2];
+        bytes_mut(&mut into[..]).copy_from_slice(&sent);
+        assert_eq!(into, motions);
+        assert!(from_bytes::<Motion>(&sent[..sent.len() - 8]).is_none());
+        assert!(
+            from_bytes::<TermRecord>(&sent).is_none(),
+            "224 bytes are no whole term records"
+        );
+        assert_eq!(from_bytes::<TermRecord>(&[]), Some(Vec::new()));
+    }
+
+    #[test]
     fn a_body_record_gives_back_the_body_to_the_bit() {
         let b = Body {
             shape: 3,
