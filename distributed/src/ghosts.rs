@@ -256,7 +256,8 @@ pub struct Received<R> {
 /// ghosts', running `work` meanwhile (nonblocking) or after (blocking).
 /// `work` is handed a `progress` to call between pieces of its work: it
 /// tests the posted requests, so that messages past the eager limit move
-/// during the work and not only inside the final wait.
+/// during the work and not only inside the final wait, and answers whether
+/// any is still in flight.
 ///
 /// The requests live in an rsmpi scope, which ends only once each has
 /// completed, so no buffer is freed or read while MPI still writes it.
@@ -265,7 +266,7 @@ pub fn exchange_motions<R>(
     lists: &GhostLists,
     world: &World,
     mode: Exchange,
-    work: impl FnOnce(&mut dyn FnMut()) -> R,
+    work: impl FnOnce(&mut dyn FnMut() -> bool) -> R,
 ) -> Received<R> {
     let start = Instant::now();
     let outbox: Vec<Vec<Motion>> = lists
@@ -318,6 +319,7 @@ pub fn exchange_motions<R>(
                     *slot = r.test().err();
                 }
             }
+            requests.iter().any(Option::is_some)
         });
         if mode == Exchange::Nonblocking {
             wait = complete(&mut requests);

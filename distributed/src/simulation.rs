@@ -572,7 +572,7 @@ impl<'c> DistributedSimulation<'c> {
     /// drawn anew reads where the ghosts are now.
     fn receive_motions(&mut self) {
         let start = Instant::now();
-        let none = |_: &mut dyn FnMut()| ();
+        let none = |_: &mut dyn FnMut() -> bool| ();
         let lists = &self.lists;
         let received = exchange_motions(
             self.comm,

@@ -173,6 +173,7 @@ struct Solid<'a> {
 }
 
 impl Solid<'_> {
+    #[inline]
     fn vertex(&self, v: u32) -> DVec3 {
         let mut cache = self.vertices.borrow_mut();
         let at = cache.world[v as usize];
@@ -321,6 +322,7 @@ fn boxes_meet(a: (DVec3, DVec3), b: (DVec3, DVec3), reach: f64) -> bool {
 /// Per vertex k of triangle `t`: whether it is within `reach` of the plane
 /// of triangle `other`, and whether edge k (from vertex k to k+1) may be (its
 /// ends not both beyond reach on one side). The margin covers rounding.
+#[inline]
 fn within_reach(t: &[DVec3; 3], other: &[DVec3; 3], reach: f64) -> [(bool, bool); 3] {
     // Heights h |n| along the unnormalised normal n, against m |n|.
     let n = (other[1] - other[0]).cross(other[2] - other[0]);

@@ -136,9 +136,6 @@ pub enum Culling {
 
 crate::named_enum!(Culling, "culling", [(Hulls, "hulls"), (Boxes, "boxes")]);
 
-/// Two bodies (or their groups in a triangle set).
-type BodyPair = (usize, usize);
-
 /// What a listed body pair's last examination showed, for the next.
 #[derive(Debug, Clone, Default)]
 struct PairMemo {
@@ -501,7 +498,9 @@ impl Detector {
     /// [`Share::Local`] holds them all), appending their contacts to
     /// `contacts` in pair order. With `progress`, the work is done in
     /// pieces, and `progress` called from this thread after each (to let
-    /// messages in flight move). The
+    /// messages in flight move) until it answers that none is in flight any
+    /// more: the rest is then one piece, since each piece's tasks end their
+    /// kernel batches part-filled. The
     /// bodies of the share must be where they are to be examined: a ghost's
     /// pose may arrive after `prepare`, before its share is examined.
     #[allow(clippy::too_many_arguments)]
@@ -512,7 +511,7 @@ impl Detector {
         halos: &[f64],
         opts: &Options,
         share: Share,
-        mut progress: Option<&mut dyn FnMut()>,
+        mut progress: Option<&mut dyn FnMut() -> bool>,
         contacts: &mut Vec<Contact>,
     ) -> DetectionStats {
         let list = std::mem::take(&mut self.lists[share as usize]);
@@ -541,14 +540,20 @@ impl Detector {
             1
         };
         let per = list.len().div_ceil(pieces).max(1);
+        let (mut rest, mut rest_memos) = (&list[..], &mut memos[..]);
+        let mut in_flight = progress.is_some();
         // An empty list is one (empty) piece: the pass runs, and is timed.
-        let empty: &[(usize, usize)] = &[];
-        let mut chunks: Vec<(&[BodyPair], &mut [PairMemo])> =
-            list.chunks(per).zip(memos.chunks_mut(per)).collect();
-        if chunks.is_empty() {
-            chunks.push((empty, &mut []));
-        }
-        for (piece, memos) in chunks {
+        let mut first = true;
+        while first || !rest.is_empty() {
+            first = false;
+            let len = if in_flight {
+                per.min(rest.len())
+            } else {
+                rest.len()
+            };
+            let (piece, tail) = rest.split_at(len);
+            let (memos, memos_tail) = std::mem::take(&mut rest_memos).split_at_mut(len);
+            (rest, rest_memos) = (tail, memos_tail);
             let (s, n_tasks) = run_tasks(&mut self.tasks, &mut self.times, &pass, piece, memos);
             stats += s;
             // Each task built the contacts of its own body pairs (a body
@@ -571,8 +576,8 @@ impl Detector {
                     }
                 }
             }
-            if let Some(p) = progress.as_mut() {
-                p();
+            if let (true, Some(p)) = (in_flight, progress.as_mut()) {
+                in_flight = p();
             }
         }
         drop(views);
@@ -811,10 +816,14 @@ fn run_tasks(
     memos: &mut [PairMemo],
 ) -> (DetectionStats, usize) {
     let start = Instant::now();
-    let lengths = pass
-        .opts
-        .threading
-        .share_lengths(body_pairs.len(), rayon::current_num_threads());
+    // One thread takes the pairs in one task: more would only end more
+    // kernel batches part-filled.
+    let threads = rayon::current_num_threads();
+    let lengths = if threads == 1 && !body_pairs.is_empty() {
+        vec![body_pairs.len()]
+    } else {
+        pass.opts.threading.share_lengths(body_pairs.len(), threads)
+    };
     let n_tasks = lengths.len();
     if tasks.len() < n_tasks {
         tasks.resize_with(n_tasks, Task::default);
