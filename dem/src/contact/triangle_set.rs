@@ -200,6 +200,32 @@ fn world_vertices(body: &Body, mesh: &TriMesh, out: &mut Vec<DVec3>) {
     out.extend(mesh.vertices.iter().map(|&v| body.x + r * v));
 }
 
+/// Whether every vertex of `mesh` is a corner of one of its triangles: then
+/// the union of its triangles' boxes is the box of its vertices.
+fn uses_every_vertex(mesh: &TriMesh) -> bool {
+    let mut used = vec![false; mesh.vertices.len()];
+    for &v in mesh.triangles.iter().flatten() {
+        used[v as usize] = true;
+    }
+    used.into_iter().all(|u| u)
+}
+
+/// The box of `vertices` inflated by `halo`: for the vertices of a mesh
+/// whose every vertex is a corner, the union of its triangles' inflated
+/// boxes ([`Bounds::of`]) to the bit, since subtracting (adding) the halo
+/// rounds monotonically and so commutes with the minimum (maximum).
+fn vertices_box(vertices: &[DVec3], halo: f64) -> Bounds {
+    let (lo, hi) = vertices
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    Bounds {
+        lo: lo - DVec3::splat(halo),
+        hi: hi + DVec3::splat(halo),
+    }
+}
+
 /// Body `i`'s triangles in world space, appended to `out` with their keys:
 /// the same bits as the set that follows the world computes, so that a rank
 /// holding a copy of a body's pose finds what one node finds.
@@ -387,6 +413,7 @@ impl TriangleSet {
         // filled at a later pose than the one recorded: its pose no longer
         // tells whether they are current.
         let poses_tell = !std::mem::take(&mut self.advanced);
+        let every_vertex_used: Vec<bool> = world.shapes.iter().map(uses_every_vertex).collect();
         // One mutable slice of triangles per body, updated in parallel.
         let mut slices = Vec::with_capacity(bodies.len());
         let mut rest = &mut self.triangles[..];
@@ -429,6 +456,14 @@ impl TriangleSet {
                     world_vertices(body, mesh, vertices);
                     // Fixed obstacles are filled now: once, since they never move.
                     let fill_now = fill == Fill::Now || body.is_fixed();
+                    if !fill_now && every_vertex_used[body.shape] {
+                        let bbox = vertices_box(vertices, halo);
+                        *fresh.get_mut() = STALE;
+                        group.owned_box = bbox;
+                        *filled_box.0.get_mut() = bbox;
+                        *pose = Some(key);
+                        return;
+                    }
                     let mut bbox = Bounds::EMPTY;
                     for (slot, t) in tris.iter_mut().zip(&mesh.triangles) {
                         let v = [
@@ -598,6 +633,63 @@ impl TriangleSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The box a moving body gets when its triangles are left to the tasks
+    /// (from its vertices) is the union of its triangles' boxes, to the bit,
+    /// at every scale and far from the origin; a mesh with a vertex no
+    /// triangle uses keeps the triangles' union.
+    #[test]
+    fn a_body_box_from_its_vertices_is_its_triangles_union_to_the_bit() {
+        let mut s = 7u64;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mesh = crate::mesh::sphere_hull(60, 1.0, 3);
+        assert!(uses_every_vertex(&mesh));
+        for scale in [1e-6, 1e-3, 1.0, 1e3, 1e6] {
+            for far in [0.0, 1e4, 1e7] {
+                for _ in 0..20 {
+                    let body = Body {
+                        shape: 0,
+                        material: 0,
+                        x: DVec3::new(rnd(), rnd(), rnd()) * scale + DVec3::splat(far * scale),
+                        q: DQuat::from_xyzw(rnd(), rnd(), rnd(), rnd()).normalize(),
+                        v: DVec3::ZERO,
+                        l: DVec3::ZERO,
+                        inv_mass: 1.0,
+                        mass: 1.0,
+                        inv_inertia_body: DMat3::IDENTITY,
+                        inertia_body: DMat3::IDENTITY,
+                        drive: None,
+                        removed: false,
+                        pending: false,
+                    };
+                    let m = TriMesh {
+                        vertices: mesh.vertices.iter().map(|&v| v * scale).collect(),
+                        triangles: mesh.triangles.clone(),
+                    };
+                    let halo = 0.01 * scale * (1.0 + rnd());
+                    let mut vertices = Vec::new();
+                    world_vertices(&body, &m, &mut vertices);
+                    let union = m.triangles.iter().fold(Bounds::EMPTY, |acc, t| {
+                        acc.union(&Bounds::of(&t.map(|k| vertices[k as usize]), halo))
+                    });
+                    let bits = |b: &Bounds| [b.lo, b.hi].map(|v| v.to_array().map(f64::to_bits));
+                    assert_eq!(
+                        bits(&vertices_box(&vertices, halo)),
+                        bits(&union),
+                        "scale {scale}, far {far}"
+                    );
+                }
+            }
+        }
+        let mut loose = mesh.clone();
+        loose.vertices.push(DVec3::splat(9.0));
+        assert!(!uses_every_vertex(&loose), "a vertex no triangle uses");
+    }
 
     fn tri(x: f64) -> Triangle {
         [
