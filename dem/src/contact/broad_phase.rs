@@ -9,9 +9,16 @@
 //! after it, and one sweep task would get all that work. Instead each static
 //! box is tested against every moving box; static-static pairs never matter.
 //!
+//! With many moving boxes in a dense scene, a uniform grid finds their
+//! pairs instead of the sweep (module `grid`): a sweep compares each box
+//! with every box of its slab across the other two axes, hundreds in a silo
+//! of ten thousand grains, where the grid's cells hold a box or two.
+//!
 //! The pairs are returned sorted, so everything downstream (task shares,
 //! contact order, friction history) depends on the boxes alone, never on the
-//! thread count.
+//! thread count nor on whether a grid or a sweep found them.
+
+mod grid;
 
 use super::bounds::Bounds;
 use super::triangle_set::BodyGroup;
@@ -48,6 +55,10 @@ const SWEEP_GRAIN: usize = 32;
 /// one thread 619-633 against 788-853 ms, two threads 763-820 against
 /// 731-769 ms (a wash).
 const PARALLEL_SWEEP_FROM: usize = 512;
+
+/// The grid replaces the sweep from this many moving boxes (if the scene is
+/// dense enough for one, see `grid`): below, a sweep's slabs are short.
+const GRID_FROM: usize = 256;
 
 /// A moving box as the sweep reads it: its extent along the sweep axis and
 /// across it, packed so that testing a box is a few loads and no branches.
@@ -93,6 +104,7 @@ pub(crate) struct BroadPhase {
     order_kept: bool,
     axis: usize,
     sweep: Vec<SweepBox>,
+    grid: grid::Grid,
     pairs: Vec<(usize, usize)>,
     /// Scratch of `sort_pairs`.
     unsorted: Vec<(usize, usize)>,
@@ -121,11 +133,21 @@ impl BroadPhase {
         phase: Phase,
         pad: f64,
     ) -> &[(usize, usize)] {
-        self.body_pairs_in_tasks_of(groups, bodies, phase, pad, SWEEP_GRAIN, PARALLEL_SWEEP_FROM)
+        self.body_pairs_in_tasks_of(
+            groups,
+            bodies,
+            phase,
+            pad,
+            SWEEP_GRAIN,
+            PARALLEL_SWEEP_FROM,
+            GRID_FROM,
+        )
     }
 
-    /// The pairs, with the sweep in tasks of `grain` moving boxes once there
-    /// are at least `parallel_from` of them.
+    /// The pairs, with the sweep (or the grid, from `grid_from` moving
+    /// boxes) in tasks of `grain` moving boxes once there are at least
+    /// `parallel_from` of them.
+    #[allow(clippy::too_many_arguments)]
     fn body_pairs_in_tasks_of(
         &mut self,
         groups: &[BodyGroup],
@@ -134,46 +156,53 @@ impl BroadPhase {
         pad: f64,
         grain: usize,
         parallel_from: usize,
+        grid_from: usize,
     ) -> &[(usize, usize)] {
         self.collect(groups, bodies, phase, pad);
-        self.sort();
-        let (moving, sweep, fixed) = (&self.moving, &self.sweep, &self.fixed);
-        // The pairs of moving box n: with the moving boxes after it in the
-        // sweep, and with every static box.
-        let pairs_of = |n: usize, hits: &mut Vec<u32>, pairs: &mut Vec<(usize, usize)>| {
-            sweep_from(sweep, moving, n, phase, hits, pairs);
-            let m = &moving[n].0;
+        self.pairs.clear();
+        let on_grid =
+            self.fresh.len() >= grid_from && self.grid.build(self.fresh.iter().map(|e| e.bounds));
+        if !on_grid {
+            self.sort();
+        }
+        let (fixed, n) = (&self.fixed, self.fresh.len());
+        // A moving box's pairs with every static box.
+        let with_fixed = |m: &Entry, pairs: &mut Vec<(usize, usize)>| {
             for f in fixed {
                 if f.bounds.overlaps(&m.bounds) {
                     pairs.extend(pair_of(f, m, phase));
                 }
             }
         };
-        let pairs = &mut self.pairs;
-        pairs.clear();
-        if sweep.len() < parallel_from.max(2 * grain) {
-            let mut hits = Vec::new();
-            for n in 0..sweep.len() {
-                pairs_of(n, &mut hits, pairs);
-            }
+        let tasks = if n < parallel_from.max(2 * grain) {
+            n.max(1)
         } else {
-            let found: Vec<(usize, usize)> = (0..sweep.len())
-                .into_par_iter()
-                .with_min_len(grain)
-                .fold(
-                    || (Vec::new(), Vec::new()),
-                    |(mut hits, mut pairs), n| {
-                        pairs_of(n, &mut hits, &mut pairs);
-                        (hits, pairs)
-                    },
-                )
-                .map(|(_, pairs)| pairs)
-                .reduce(Vec::new, |mut a, b| {
-                    a.extend_from_slice(&b);
-                    a
+            grain
+        };
+        if on_grid {
+            let (fresh, grid) = (&self.fresh, &self.grid);
+            let pairs_of = |i: usize, _: &mut Vec<u32>, pairs: &mut Vec<(usize, usize)>| {
+                let m = &fresh[i];
+                grid.candidates_of(i, |j| {
+                    let o = &fresh[j];
+                    if m.bounds.overlaps(&o.bounds) {
+                        pairs.extend(pair_of(m, o, phase));
+                    }
                 });
-            pairs.extend_from_slice(&found);
+                with_fixed(m, pairs);
+            };
+            in_tasks(n, tasks, pairs_of, &mut self.pairs);
+        } else {
+            let (moving, sweep) = (&self.moving, &self.sweep);
+            // The pairs of moving box n: with the moving boxes after it in the
+            // sweep, and with every static box.
+            let pairs_of = |n: usize, hits: &mut Vec<u32>, pairs: &mut Vec<(usize, usize)>| {
+                sweep_from(sweep, moving, n, phase, hits, pairs);
+                with_fixed(&moving[n].0, pairs);
+            };
+            in_tasks(n, tasks, pairs_of, &mut self.pairs);
         }
+        let pairs = &mut self.pairs;
         sort_pairs(pairs, &mut self.unsorted, &mut self.pair_counts);
         // Across, two groups may meet owned-ghost and ghost-owned.
         if phase == Phase::Across {
@@ -248,6 +277,40 @@ impl BroadPhase {
         self.sweep
             .extend(moving.iter().map(|(e, _)| SweepBox::new(&e.bounds, axis)));
     }
+}
+
+/// Appends the pairs `pairs_of` finds for each of boxes 0..n (with a
+/// scratch of its own), on this thread when `grain` covers them all, else in
+/// parallel tasks of at least `grain` boxes.
+fn in_tasks(
+    n: usize,
+    grain: usize,
+    pairs_of: impl Fn(usize, &mut Vec<u32>, &mut Vec<(usize, usize)>) + Sync,
+    pairs: &mut Vec<(usize, usize)>,
+) {
+    if grain >= n {
+        let mut hits = Vec::new();
+        for i in 0..n {
+            pairs_of(i, &mut hits, pairs);
+        }
+        return;
+    }
+    let found: Vec<(usize, usize)> = (0..n)
+        .into_par_iter()
+        .with_min_len(grain)
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut hits, mut pairs), i| {
+                pairs_of(i, &mut hits, &mut pairs);
+                (hits, pairs)
+            },
+        )
+        .map(|(_, pairs)| pairs)
+        .reduce(Vec::new, |mut a, b| {
+            a.extend_from_slice(&b);
+            a
+        });
+    pairs.extend_from_slice(&found);
 }
 
 /// Sorts pairs of group indices by bucketing them by their first index
@@ -461,6 +524,100 @@ mod tests {
         out
     }
 
+    /// The grid finds what the definition finds, each pair once, on dense
+    /// scenes at every scale and far from the origin, with large moving
+    /// boxes among small ones, on any pool; and a sparse scene falls back
+    /// to the sweep with the same answer.
+    #[test]
+    fn the_grid_finds_exactly_the_overlapping_pairs_once_at_any_scale() {
+        let mut grids = 0;
+        for seed in [4, 5, 6] {
+            for (scale, far) in [(1.0, 0.0), (1e-6, 0.0), (1e6, 0.0), (1.0, 1e7), (1e-3, 1e9)] {
+                for spread in [0.05, 30.0] {
+                    let (set, bodies) = scene_scaled(seed, 1000, spread, scale, far);
+                    for phase in [Phase::LocalLocal, Phase::LocalGhost, Phase::Across] {
+                        let reference: Vec<_> =
+                            all_pairs(&set, &bodies, phase).into_iter().collect();
+                        for threads in [1, 2] {
+                            let pool = rayon::ThreadPoolBuilder::new()
+                                .num_threads(threads)
+                                .build()
+                                .unwrap();
+                            let mut broad = BroadPhase::default();
+                            let got = pool.install(|| {
+                                broad
+                                    .body_pairs_in_tasks_of(
+                                        set.groups(),
+                                        &bodies,
+                                        phase,
+                                        0.0,
+                                        16,
+                                        0,
+                                        0,
+                                    )
+                                    .to_vec()
+                            });
+                            assert_eq!(
+                                got, reference,
+                                "seed {seed}, scale {scale}, far {far}, spread {spread}, {phase:?}"
+                            );
+                        }
+                    }
+                    let mut broad = BroadPhase::default();
+                    broad.collect(set.groups(), &bodies, Phase::LocalLocal, 0.0);
+                    if broad.grid.build(broad.fresh.iter().map(|e| e.bounds)) {
+                        grids += 1;
+                        assert!(spread < 1.0, "a sparse scene gets no grid");
+                    }
+                }
+            }
+        }
+        assert_eq!(grids, 15, "every dense scene on a grid");
+    }
+
+    /// Like `scene`, with the bodies in a box of side 10 · spread^(1/3)
+    /// (a tenth of the boxes wider than the rest, moving), then scaled and
+    /// moved `far` (times the scale) from the origin.
+    fn scene_scaled(
+        seed: u64,
+        n: u32,
+        spread: f64,
+        scale: f64,
+        far: f64,
+    ) -> (TriangleSet, Vec<Body>) {
+        let mut s = seed;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let side = 10.0 * spread.cbrt();
+        let (mut owned, mut ghosts) = (Vec::new(), Vec::new());
+        for body in 0..n {
+            let c = DVec3::new(rnd(), rnd(), rnd()) * side;
+            let width = if body % 10 == 1 { 4.0 } else { 1.0 };
+            for index in 0..4 {
+                let mut t = [c; 3];
+                for v in &mut t {
+                    *v = (*v + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * width) * scale
+                        + DVec3::splat(far * scale);
+                }
+                let k = (TriangleKey { body, index }, t);
+                if rnd() < 0.6 {
+                    owned.push(k)
+                } else {
+                    ghosts.push(k)
+                }
+            }
+        }
+        let halos = vec![0.05 * scale; n as usize];
+        let mut set = TriangleSet::with_owned(owned, &halos);
+        set.set_ghosts(ghosts, &halos);
+        let bodies = (0..n).map(|i| body(i % 5 != 3)).collect();
+        (set, bodies)
+    }
+
     #[test]
     fn sweep_finds_exactly_the_overlapping_pairs_once_on_any_pool() {
         for seed in [1, 2, 3, 99] {
@@ -490,6 +647,7 @@ mod tests {
                                         0.0,
                                         grain,
                                         0,
+                                        usize::MAX,
                                     )
                                     .to_vec()
                             });
