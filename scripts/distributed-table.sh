@@ -8,6 +8,8 @@
 #     efficiency: CORES independent 1 x 1 runs at once, one per core, share
 #     the caches, memory and clock of the cores, so T(1x1) / T(the slowest
 #     copy) is the most any split of the work into CORES ranks can reach;
+#     silo-1000 twice: its first 1,500 steps (the filling, few contacts, short
+#     steps) and its first 3,000 (into the packed bed);
 #  2. the exchange: the wait with a blocking and a non-blocking exchange on
 #     silo-1000, alternating;
 #  3. memory: peak resident memory per rank of silo on 1, 2 and 4 ranks, less
@@ -48,7 +50,7 @@ echo "Measured by \`scripts/distributed-table.sh $repeat $cores\` on $cpu ($(npr
 echo
 echo "| scene | steps | 1 x 1 (ms/step) | 1 x $cores threads | $cores ranks x 1 | ranks / threads | efficiency | ceiling ($cores copies at once) | efficiency / ceiling | busy imbalance | ghosts per rank |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
-for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo.toml:1000; do
+for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo-1000.toml:3000 silo.toml:1000; do
   scene=scenes/${spec%%:*}; steps=${spec##*:}
   one=(); threads=(); ranks=(); copies=(); imb=(); ghosts=()
   for _ in $(seq "$repeat"); do

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates docs/tables.md: the current results table of each area
 # (distance kernels, the DEM on one node, contact culling, validation, the partitioners, the DEM across
-# ranks: ranks against threads, memory, and the projection to the paper's
+# ranks: ranks against threads, memory, the weights' cost model, and the projection to the paper's
 # run; the output's size), each under the command that printed it, stamped with the CPU model,
 # the cores and the commit. About fifteen minutes on two cores.
 # Usage: scripts/tables.sh
@@ -97,6 +97,17 @@ RCB (docs/distributed.md)." \
   echo
 } >> "$page"
 echo "Ranks or threads: done" >&2
+{
+  echo "### Weights"
+  echo
+  echo "The \`pairs\` weight's cost model, fitted to each rank's busy time interval by interval on two"
+  echo "scenes and checked on the others: the busy time it predicts, and whether it sees which"
+  echo "rank is the busier (docs/distributed.md, \"The cost model\")."
+  echo
+  scripts/weights-fit.sh 3
+  echo
+} >> "$page"
+echo "Weights: done" >&2
 {
   echo "### Migration: reusing the previous partition or starting from scratch"
   echo

@@ -68,6 +68,9 @@ step_metrics! {
         neighbour_lists_drawn,
         /// Contacts this rank computed (each contact of the run on one rank).
         contacts,
+        /// Owned bodies in the run (not waiting, not taken out): what the
+        /// per-body cost is paid for; over an interval, body-steps.
+        present_bodies,
         /// Body pairs and triangle pairs the detection examined.
         body_pairs,
         triangle_pairs,

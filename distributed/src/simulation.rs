@@ -466,6 +466,7 @@ impl<'c> DistributedSimulation<'c> {
         m.local_bodies = self.local.world.bodies.len() as u64;
         m.local_triangles = self.local.triangles();
         m.neighbours = self.lists.send.len().max(self.lists.recv.len()) as u64;
+        m.present_bodies = present;
         m.modelled_work_ns =
             crate::weights::rank_cost(present, m.body_pairs, m.triangle_pairs).round() as u64;
         // The first step also carries the start's sections (see above).

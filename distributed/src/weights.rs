@@ -22,9 +22,10 @@ pub const OUT_SHARE: f64 = 1e-3;
 /// The cost model of `pairs`, in nanoseconds: per body and step (the kicks,
 /// the drift, moving its triangles, the broad phase), per body pair examined
 /// (culling its triangle pairs), per triangle pair (the kernel, the
-/// contacts). Fitted to the one-thread section times of the hopper and the
-/// 1,000-particle silo (3,000 steps each), it predicts the 400-particle
-/// hopper's narrow phase within 1% (docs/distributed.md, "Weights").
+/// contacts). Fitted with rates >= 0 to each rank's busy time, interval by
+/// interval, of 2-rank runs of the hopper and the 1,000-particle silo, and
+/// checked on scenes it was not fitted to (`scripts/weights-fit.sh`;
+/// docs/distributed.md, "Weights").
 pub struct Cost {
     pub body_step: f64,
     pub body_pair: f64,
@@ -32,9 +33,9 @@ pub struct Cost {
 }
 
 pub const COST: Cost = Cost {
-    body_step: 150.0,
-    body_pair: 492.0,
-    triangle_pair: 65.0,
+    body_step: 110.0,
+    body_pair: 801.0,
+    triangle_pair: 226.0,
 };
 
 /// How particles are weighed (see the module doc).
