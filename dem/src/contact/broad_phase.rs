@@ -501,6 +501,22 @@ mod tests {
     }
 
     /// The sweep against the definition, checked on every pair of groups.
+    /// The pairs `broad` finds among `on`'s bodies in one phase, on `pool`,
+    /// in tasks of `grain` moving boxes, on the grid from `grid_from` boxes.
+    fn pairs_on(
+        pool: &rayon::ThreadPool,
+        broad: &mut BroadPhase,
+        (set, bodies, phase): (&TriangleSet, &[Body], Phase),
+        grain: usize,
+        grid_from: usize,
+    ) -> Vec<(usize, usize)> {
+        pool.install(|| {
+            broad
+                .body_pairs_in_tasks_of(set.groups(), bodies, phase, 0.0, grain, 0, grid_from)
+                .to_vec()
+        })
+    }
+
     fn all_pairs(set: &TriangleSet, bodies: &[Body], phase: Phase) -> BTreeSet<(usize, usize)> {
         let g = set.groups();
         let mut out = BTreeSet::new();
@@ -544,19 +560,8 @@ mod tests {
                                 .build()
                                 .unwrap();
                             let mut broad = BroadPhase::default();
-                            let got = pool.install(|| {
-                                broad
-                                    .body_pairs_in_tasks_of(
-                                        set.groups(),
-                                        &bodies,
-                                        phase,
-                                        0.0,
-                                        16,
-                                        0,
-                                        0,
-                                    )
-                                    .to_vec()
-                            });
+                            let on = (&set, &bodies[..], phase);
+                            let got = pairs_on(&pool, &mut broad, on, 16, 0);
                             assert_eq!(
                                 got, reference,
                                 "seed {seed}, scale {scale}, far {far}, spread {spread}, {phase:?}"
@@ -638,19 +643,8 @@ mod tests {
                             let reference: Vec<_> =
                                 all_pairs(&set, &bodies, phase).into_iter().collect();
                             assert!(reference.len() > 50, "a test with pairs to find");
-                            let got = pool.install(|| {
-                                broad
-                                    .body_pairs_in_tasks_of(
-                                        set.groups(),
-                                        &bodies,
-                                        phase,
-                                        0.0,
-                                        grain,
-                                        0,
-                                        usize::MAX,
-                                    )
-                                    .to_vec()
-                            });
+                            let on = (&set, &bodies[..], phase);
+                            let got = pairs_on(&pool, &mut broad, on, grain, usize::MAX);
                             // Sorted and each once, on every pool size:
                             // downstream task shares and contact order depend on it.
                             assert_eq!(
