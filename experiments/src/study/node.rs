@@ -304,13 +304,89 @@ pub(super) fn report(args: &StudyArgs, dir: &Path, groups: &[Group]) -> CliResul
             "noise floor: {:.1}% of the time per step ({how})",
             100.0 * floor
         );
-        println!("{}", finding(groups, stepping, floor));
+        match args.name {
+            StudyName::Accuracy => println!("{}", accuracy_finding(&rows, floor)),
+            _ => println!("{}", finding(groups, stepping, floor)),
+        }
     }
     if args.name == StudyName::Accuracy {
         println!("{}", exactness(&rows));
     }
     println!("data and figures in {}", dir.display());
     Ok(())
+}
+
+/// A run's contacts per step.
+fn contacts_per_step(r: &Ran) -> f64 {
+    let s = &r.summary;
+    s["contacts"].as_f64().unwrap_or(0.0) / s["steps"].as_f64().unwrap_or(1.0).max(1.0)
+}
+
+/// What the accuracy study found, in a sentence. A setting that is faster
+/// because it misses contacts is no cheaper way to the same answer, so the
+/// finding leads with the fastest exact setting (brute force's trajectories
+/// bit for bit) against brute force itself, then names each approximate
+/// setting faster than it beyond the noise floor `floor`, with what it
+/// gives up: the contacts per step it finds of brute force's (the first
+/// row), its contacts deeper than the halos, and its deviation in chaos
+/// floors (the second row's deviation).
+fn accuracy_finding(rows: &[Row], floor: f64) -> String {
+    let (Some(brute), Some(chaos)) = (rows.first(), rows.get(1)) else {
+        return String::new();
+    };
+    let time = |r: &Row| r.seconds_per_step.median;
+    let Some(best) = rows
+        .iter()
+        .filter(|r| r.identical)
+        .min_by(|a, b| time(a).total_cmp(&time(b)))
+    else {
+        return "found: no setting gives brute force's trajectories".into();
+    };
+    let t = time(best);
+    let against_brute = if std::ptr::eq(best, brute) {
+        "brute force itself".to_string()
+    } else {
+        let gap = (time(brute) - t) / t;
+        if gap <= floor {
+            format!(
+                "no faster than brute force ({:.3} ms) beyond the noise floor",
+                1e3 * time(brute)
+            )
+        } else {
+            format!("brute force takes {:+.0}%", 100.0 * gap)
+        }
+    };
+    let reference = contacts_per_step(brute.ran);
+    let faster: Vec<String> = rows
+        .iter()
+        .skip(2)
+        .filter(|r| !r.identical && (t - time(r)) / t > floor)
+        .map(|r| {
+            format!(
+                "{} {:+.0}% ({:.0} of brute force's {:.0} contacts per step, {} deep, {:.1e} chaos \
+                 floors of deviation)",
+                r.ran.spec.label,
+                100.0 * (time(r) - t) / t,
+                contacts_per_step(r.ran),
+                reference,
+                r.deep,
+                r.rms / chaos.rms.max(f64::MIN_POSITIVE)
+            )
+        })
+        .collect();
+    let faster = if faster.is_empty() {
+        "no approximate setting is faster beyond it".to_string()
+    } else {
+        format!("faster, by giving up contacts: {}", faster.join(", "))
+    };
+    format!(
+        "found: the fastest exact setting is {} ({:.3} ms per step, median of {} runs), \
+         {against_brute}; noise floor {:.1}%; {faster}",
+        best.ran.spec.label,
+        1e3 * t,
+        best.repeats,
+        100.0 * floor
+    )
 }
 
 /// What exactness costs, in a sentence: the settings that give brute
@@ -482,4 +558,89 @@ fn table(rows: &[Row]) -> String {
         .expect("string");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Runs of one setting as the accuracy table reads them.
+    fn ran(label: &str, contacts_per_step: f64) -> Ran {
+        Ran {
+            spec: Spec {
+                label: label.into(),
+                ranks: 1,
+                threads: 1,
+                args: Vec::new(),
+                x: 0.0,
+                series: String::new(),
+            },
+            summary: serde_json::json!({ "contacts": 100.0 * contacts_per_step, "steps": 100 }),
+            lines: Vec::new(),
+        }
+    }
+
+    fn row(ran: &Ran, ms: f64, rms: f64, identical: bool, deep: u64) -> Row<'_> {
+        Row {
+            ran,
+            repeats: 3,
+            seconds_per_step: Stat {
+                median: 1e-3 * ms,
+                lo: 1e-3 * ms,
+                hi: 1e-3 * ms,
+            },
+            narrow_idle: 0.0,
+            rms,
+            max: rms,
+            identical,
+            drift: 0.0,
+            deep,
+        }
+    }
+
+    /// A setting that is fast because it finds few contacts is named with
+    /// what it gives up, never as the fastest way to brute force's answer.
+    #[test]
+    fn the_accuracy_finding_leads_with_the_fastest_exact_setting() {
+        let runs = [
+            ran("brute", 1254.0),
+            ran("chaos", 1253.0),
+            ran("penalty-1it", 29.0),
+            ran("hybrid", 1254.0),
+            ran("penalty-4it-finish", 1246.0),
+        ];
+        let rows = [
+            row(&runs[0], 4.1, 0.0, true, 0),
+            row(&runs[1], 4.5, 1e-5, false, 0),
+            row(&runs[2], 1.7, 5e-2, false, 658),
+            row(&runs[3], 4.6, 0.0, true, 0),
+            row(&runs[4], 4.0, 2.7e-5, false, 0),
+        ];
+        let text = accuracy_finding(&rows, 0.1);
+        assert!(
+            text.starts_with("found: the fastest exact setting is brute (4.100 ms"),
+            "{text}"
+        );
+        assert!(text.contains("brute force itself"), "{text}");
+        assert!(
+            text.contains("penalty-1it -59% (29 of brute force's 1254 contacts per step, 658 deep, 5.0e3 chaos floors"),
+            "{text}"
+        );
+        // Within the floor of the fastest exact setting: not faster.
+        assert!(!text.contains("penalty-4it-finish"), "{text}");
+        // The exact hybrid, slower than brute force beyond the floor, leads
+        // once brute force is slower still.
+        let rows = [
+            row(&runs[0], 6.0, 0.0, true, 0),
+            row(&runs[1], 6.1, 1e-5, false, 0),
+            row(&runs[3], 4.6, 0.0, true, 0),
+        ];
+        let text = accuracy_finding(&rows, 0.1);
+        assert!(
+            text.contains("fastest exact setting is hybrid (4.600 ms"),
+            "{text}"
+        );
+        assert!(text.contains("brute force takes +30%"), "{text}");
+        assert!(text.contains("no approximate setting is faster"), "{text}");
+    }
 }
