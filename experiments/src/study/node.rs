@@ -356,6 +356,7 @@ fn accuracy_finding(rows: &[Row], floor: f64) -> String {
             format!("brute force takes {:+.0}%", 100.0 * gap)
         }
     };
+    let others = other_exact_settings(rows, best, floor);
     let reference = contacts_per_step(brute.ran);
     let faster: Vec<String> = rows
         .iter()
@@ -381,12 +382,35 @@ fn accuracy_finding(rows: &[Row], floor: f64) -> String {
     };
     format!(
         "found: the fastest exact setting is {} ({:.3} ms per step, median of {} runs), \
-         {against_brute}; noise floor {:.1}%; {faster}",
+         {against_brute}{others}; noise floor {:.1}%; {faster}",
         best.ran.spec.label,
         1e3 * t,
         best.repeats,
         100.0 * floor
     )
+}
+
+/// The exact settings other than `best`, each with how much longer than it
+/// a step takes, or "within the floor" when the gap is inside the noise.
+fn other_exact_settings(rows: &[Row], best: &Row, floor: f64) -> String {
+    let t = best.seconds_per_step.median;
+    let others: Vec<String> = rows
+        .iter()
+        .filter(|r| r.identical && !std::ptr::eq(*r, best))
+        .map(|r| {
+            let gap = (r.seconds_per_step.median - t) / t;
+            if gap <= floor {
+                format!("{} within the floor", r.ran.spec.label)
+            } else {
+                format!("{} {:+.0}%", r.ran.spec.label, 100.0 * gap)
+            }
+        })
+        .collect();
+    if others.is_empty() {
+        String::new()
+    } else {
+        format!("; the other exact settings: {}", others.join(", "))
+    }
 }
 
 /// What exactness costs, in a sentence: the settings that give brute
@@ -537,7 +561,7 @@ fn table(rows: &[Row]) -> String {
     );
     for r in rows {
         let j = &r.ran.summary;
-        let per_step = j["contacts"].as_f64().unwrap_or(0.0) / j["steps"].as_f64().unwrap_or(1.0);
+        let per_step = contacts_per_step(r.ran);
         writeln!(
             s,
             "{:<26} {:>7} {:>8.3} [{:.3}, {:.3}] {:>6.1}% {:>8.2}% {:>9.0} {:>10.2e} {:>10.2e} {:>9} {:>9.2e} {:>6}",
@@ -628,6 +652,11 @@ mod tests {
         );
         // Within the floor of the fastest exact setting: not faster.
         assert!(!text.contains("penalty-4it-finish"), "{text}");
+        // The other exact setting, with its cost beyond the floor.
+        assert!(
+            text.contains("the other exact settings: hybrid +12%"),
+            "{text}"
+        );
         // The exact hybrid, slower than brute force beyond the floor, leads
         // once brute force is slower still.
         let rows = [
@@ -642,5 +671,16 @@ mod tests {
         );
         assert!(text.contains("brute force takes +30%"), "{text}");
         assert!(text.contains("no approximate setting is faster"), "{text}");
+        // An exact setting inside the floor is said to be so, not ranked.
+        let rows = [
+            row(&runs[0], 4.2, 0.0, true, 0),
+            row(&runs[1], 4.3, 1e-5, false, 0),
+            row(&runs[3], 4.0, 0.0, true, 0),
+        ];
+        let text = accuracy_finding(&rows, 0.1);
+        assert!(
+            text.contains("the other exact settings: brute within the floor"),
+            "{text}"
+        );
     }
 }
