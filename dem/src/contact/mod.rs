@@ -717,9 +717,15 @@ fn split_pairs(
 /// (by its bodies' ids, `listed_ids`, set anew here) whose last examination
 /// showed its bodies apart with a clearance keeps it, with the poses it
 /// holds from and its separating direction: none depends on the list. Kept
-/// triangle pairs (set indices) are not carried, nor the hints of pairs
-/// that were not apart (GJK started from a stale direction examines more
-/// triangle pairs than from the centroids). Only pairs of bodies whose
+/// triangle pairs are not carried, although on one node their set indices
+/// would still hold: a rebuild is what sends a body pair whose kept pairs
+/// have drifted beyond reach back to the hull test, whose certificate costs
+/// no kernel call while it lasts. Carried, the kept pairs of grains that
+/// have since parted go on to the kernel step after step (the same bits;
+/// on the hoppers and silo-1000, over twice the triangle pairs, and
+/// slower). Nor are the hints of pairs that were not apart carried (GJK
+/// started from a stale direction examines more triangle pairs than from
+/// the centroids). Only pairs of bodies whose
 /// triangles the set holds whole, in one part, carry: a rank's share of an
 /// obstacle changes with its region, and a clearance from the old share
 /// says nothing of the new one. Nothing is carried unless `carry`.
