@@ -659,12 +659,16 @@ mod tests {
         );
         // The exact hybrid, slower than brute force beyond the floor, leads
         // once brute force is slower still.
-        let rows = [
-            row(&runs[0], 6.0, 0.0, true, 0),
-            row(&runs[1], 6.1, 1e-5, false, 0),
-            row(&runs[3], 4.6, 0.0, true, 0),
-        ];
-        let text = accuracy_finding(&rows, 0.1);
+        // Brute force, chaos and the exact hybrid at these ms per step.
+        let three = |brute: f64, chaos: f64, hybrid: f64| {
+            let rows = [
+                row(&runs[0], brute, 0.0, true, 0),
+                row(&runs[1], chaos, 1e-5, false, 0),
+                row(&runs[3], hybrid, 0.0, true, 0),
+            ];
+            accuracy_finding(&rows, 0.1)
+        };
+        let text = three(6.0, 6.1, 4.6);
         assert!(
             text.contains("fastest exact setting is hybrid (4.600 ms"),
             "{text}"
@@ -672,12 +676,7 @@ mod tests {
         assert!(text.contains("brute force takes +30%"), "{text}");
         assert!(text.contains("no approximate setting is faster"), "{text}");
         // An exact setting inside the floor is said to be so, not ranked.
-        let rows = [
-            row(&runs[0], 4.2, 0.0, true, 0),
-            row(&runs[1], 4.3, 1e-5, false, 0),
-            row(&runs[3], 4.0, 0.0, true, 0),
-        ];
-        let text = accuracy_finding(&rows, 0.1);
+        let text = three(4.2, 4.3, 4.0);
         assert!(
             text.contains("the other exact settings: brute within the floor"),
             "{text}"
