@@ -721,9 +721,9 @@ fn split_pairs(
 /// would still hold: a rebuild is what sends a body pair whose kept pairs
 /// have drifted beyond reach back to the hull test, whose certificate costs
 /// no kernel call while it lasts. Carried, the kept pairs of grains that
-/// have since parted go on to the kernel step after step (the same bits;
-/// on hopper-400, over twice the triangle pairs, and slower there and on
-/// silo-1000). Nor are the hints of pairs that were not apart carried (GJK
+/// have since parted go on to the kernel step after step (the same bits,
+/// but many more triangle pairs, and slower on hopper-400 and silo-1000).
+/// Nor are the hints of pairs that were not apart carried (GJK
 /// started from a stale direction examines more triangle pairs than from
 /// the centroids). Only pairs of bodies whose
 /// triangles the set holds whole, in one part, carry: a rank's share of an
