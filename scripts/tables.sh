@@ -55,6 +55,16 @@ section, and the reference workload's speed-up in the same minutes (docs/dem.md,
 } >> "$page"
 echo "Contact culling: done" >&2
 {
+  echo "### Against the build before the mid-phase culling"
+  echo
+  echo "This build against commit 0653782, whose detection tested every triangle pair of"
+  echo "two bodies' overlapping boxes, side by side on one thread (docs/dem.md, \"Culling\")."
+  echo
+  scripts/compare-builds.sh 0653782 3
+  echo
+} >> "$page"
+echo "Against the earlier build: done" >&2
+{
   echo "## Validation"
   echo
   echo "Contact mechanics where faces, edges and corners touch, on shapes and angles no"

@@ -129,6 +129,8 @@ pub(crate) struct FeatureScratch {
     corners: Vec<(Side, u32, u32)>,
     creases: Vec<(u32, u32)>,
     found: Vec<Contact>,
+    /// The two bodies' triangles as the queries read them.
+    facets: [FacetCache; 2],
     /// World positions of the two bodies' vertices, as they are needed.
     vertices: [RefCell<VertexCache>; 2],
 }
@@ -261,35 +263,29 @@ pub(crate) fn append_feature_contacts(
 fn queries(group: &[TriangleContact], sa: &Solid, sb: &Solid, reach: f64, s: &mut FeatureScratch) {
     s.corners.clear();
     s.creases.clear();
-    let convex = |f: &Features, l: u32| l != NO_CREASE && f.creases[l as usize].convex;
+    let [facets_a, facets_b] = &mut s.facets;
+    facets_a.reset(sa.mesh.triangles.len());
+    facets_b.reset(sb.mesh.triangles.len());
     for t in group {
-        let (ta, tb) = (t.a.index, t.b.index);
-        let (tri_a, tri_b) = (
-            sa.mesh.triangles[ta as usize],
-            sb.mesh.triangles[tb as usize],
-        );
+        let fa = facets_a.get(sa, t.a.index, reach);
+        let fb = facets_b.get(sb, t.b.index, reach);
+        let (tri_a, tri_b) = (fa.triangle, fb.triangle);
+        let (pa, pb) = (&fa.corners, &fb.corners);
         // A corner (an edge) can touch the other triangle only if it is (a
         // point of it is) within reach of that triangle's plane.
-        let (pa, pb) = (tri_a.map(|v| sa.vertex(v)), tri_b.map(|v| sb.vertex(v)));
-        let (near_a, near_b) = (within_reach(&pa, &pb, reach), within_reach(&pb, &pa, reach));
-        let (box_a, box_b) = (grown_box(&pa, reach), grown_box(&pb, reach));
+        let (near_a, near_b) = (fb.within_reach(pa), fa.within_reach(pb));
         for k in 0..3 {
-            if near_a[k].0 && sa.features.corner[tri_a[k] as usize] && inside_box(pa[k], box_b) {
-                s.corners.push((Side::A, tri_a[k], tb));
+            if near_a[k].0 && sa.features.corner[tri_a[k] as usize] && inside_box(pa[k], fb.grown) {
+                s.corners.push((Side::A, tri_a[k], t.b.index));
             }
-            if near_b[k].0 && sb.features.corner[tri_b[k] as usize] && inside_box(pb[k], box_a) {
-                s.corners.push((Side::B, tri_b[k], ta));
+            if near_b[k].0 && sb.features.corner[tri_b[k] as usize] && inside_box(pb[k], fa.grown) {
+                s.corners.push((Side::B, tri_b[k], t.a.index));
             }
         }
-        for (k, &la) in sa.features.edge_crease[ta as usize].iter().enumerate() {
-            if !near_a[k].1 || !convex(sa.features, la) {
-                continue;
-            }
-            let edge_a = (pa[k], pa[(k + 1) % 3]);
-            for (l, &lb) in sb.features.edge_crease[tb as usize].iter().enumerate() {
-                let edge_b = (pb[l], pb[(l + 1) % 3]);
-                if near_b[l].1 && convex(sb.features, lb) && boxes_meet(edge_a, edge_b, reach) {
-                    s.creases.push((la, lb));
+        for k in fa.crease_edges(near_a) {
+            for l in fb.crease_edges(near_b) {
+                if boxes_meet(fa.edges[k], fb.edges[l], fa.pad) {
+                    s.creases.push((fa.creases[k], fb.creases[l]));
                 }
             }
         }
@@ -298,6 +294,106 @@ fn queries(group: &[TriangleContact], sa: &Solid, sb: &Solid, reach: f64, s: &mu
     s.corners.dedup();
     s.creases.sort_unstable();
     s.creases.dedup();
+}
+
+/// What the corner and crease queries read of one triangle of a body pair,
+/// computed once per body pair however many triangle contacts it has.
+#[derive(Debug, Clone, Copy)]
+struct Facet {
+    triangle: [u32; 3],
+    corners: [DVec3; 3],
+    /// The plane's unnormalised normal, and the reach (with a margin for
+    /// rounding) in units of it.
+    normal: DVec3,
+    reach_n: f64,
+    /// The triangle's box grown by the reach (and the margin).
+    grown: (DVec3, DVec3),
+    /// Per edge k (from corner k to k+1): its box, and its convex crease
+    /// (`NO_CREASE` if none).
+    edges: [(DVec3, DVec3); 3],
+    creases: [u32; 3],
+    /// The reach with the margin for rounding.
+    pad: f64,
+}
+
+impl Facet {
+    fn new(solid: &Solid, t: u32, reach: f64) -> Facet {
+        let triangle = solid.mesh.triangles[t as usize];
+        let corners = triangle.map(|v| solid.vertex(v));
+        let normal = (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+        let pad = reach * (1.0 + 1e-9);
+        let f = solid.features;
+        let convex = |l: u32| l != NO_CREASE && f.creases[l as usize].convex;
+        Facet {
+            triangle,
+            corners,
+            normal,
+            reach_n: pad * normal.length(),
+            grown: grown_box(&corners, reach),
+            edges: std::array::from_fn(|k| {
+                let (p, q) = (corners[k], corners[(k + 1) % 3]);
+                (p.min(q), p.max(q))
+            }),
+            creases: f.edge_crease[t as usize].map(|l| if convex(l) { l } else { NO_CREASE }),
+            pad,
+        }
+    }
+
+    /// The edges with a convex crease that `near` (of [`Facet::within_reach`])
+    /// finds may be within reach.
+    fn crease_edges(&self, near: [(bool, bool); 3]) -> impl Iterator<Item = usize> + '_ {
+        (0..3).filter(move |&k| near[k].1 && self.creases[k] != NO_CREASE)
+    }
+
+    /// Per corner k of `t`: whether it is within reach of this triangle's
+    /// plane, and whether edge k (from corner k to k+1) may be (its ends not
+    /// both beyond reach on one side). The margin covers rounding.
+    #[inline]
+    fn within_reach(&self, t: &[DVec3; 3]) -> [(bool, bool); 3] {
+        // Heights h |n| along the unnormalised normal n, against m |n|.
+        let (n, m) = (self.normal, self.reach_n);
+        let h = t.map(|x| (x - self.corners[0]).dot(n));
+        std::array::from_fn(|k| {
+            let (h0, h1) = (h[k], h[(k + 1) % 3]);
+            let edge = !((h0 >= m && h1 >= m) || (h0 <= -m && h1 <= -m));
+            (h0.abs() < m, edge)
+        })
+    }
+}
+
+/// The [`Facet`]s of one body's triangles, each computed once per body pair.
+#[derive(Debug, Default)]
+struct FacetCache {
+    /// Per triangle of the mesh, its slot in `facets` (`u32::MAX`: none yet).
+    slot: Vec<u32>,
+    facets: Vec<Facet>,
+    touched: Vec<u32>,
+}
+
+impl FacetCache {
+    /// Ready for a mesh of `n` triangles, none known.
+    fn reset(&mut self, n: usize) {
+        for &t in &self.touched {
+            self.slot[t as usize] = u32::MAX;
+        }
+        self.touched.clear();
+        self.facets.clear();
+        if self.slot.len() < n {
+            self.slot.resize(n, u32::MAX);
+        }
+    }
+
+    #[inline]
+    fn get(&mut self, solid: &Solid, t: u32, reach: f64) -> &Facet {
+        let mut at = self.slot[t as usize];
+        if at == u32::MAX {
+            at = self.facets.len() as u32;
+            self.facets.push(Facet::new(solid, t, reach));
+            self.slot[t as usize] = at;
+            self.touched.push(t);
+        }
+        &self.facets[at as usize]
+    }
 }
 
 /// The box of a triangle grown by `reach` (and a margin for rounding).
@@ -310,29 +406,10 @@ fn inside_box(p: DVec3, (lo, hi): (DVec3, DVec3)) -> bool {
     p.cmpgt(lo).all() && p.cmplt(hi).all()
 }
 
-/// Whether the boxes of two segments, grown by `reach` (and a margin for
-/// rounding), overlap: else no point of one is within reach of the other.
-fn boxes_meet(a: (DVec3, DVec3), b: (DVec3, DVec3), reach: f64) -> bool {
-    let m = reach * (1.0 + 1e-9);
-    let (lo_a, hi_a) = (a.0.min(a.1), a.0.max(a.1));
-    let (lo_b, hi_b) = (b.0.min(b.1), b.0.max(b.1));
-    (lo_a - hi_b).max_element() < m && (lo_b - hi_a).max_element() < m
-}
-
-/// Per vertex k of triangle `t`: whether it is within `reach` of the plane
-/// of triangle `other`, and whether edge k (from vertex k to k+1) may be (its
-/// ends not both beyond reach on one side). The margin covers rounding.
-#[inline]
-fn within_reach(t: &[DVec3; 3], other: &[DVec3; 3], reach: f64) -> [(bool, bool); 3] {
-    // Heights h |n| along the unnormalised normal n, against m |n|.
-    let n = (other[1] - other[0]).cross(other[2] - other[0]);
-    let m = reach * (1.0 + 1e-9) * n.length();
-    let h = t.map(|x| (x - other[0]).dot(n));
-    std::array::from_fn(|k| {
-        let (h0, h1) = (h[k], h[(k + 1) % 3]);
-        let edge = !((h0 >= m && h1 >= m) || (h0 <= -m && h1 <= -m));
-        (h0.abs() < m, edge)
-    })
+/// Whether two segments' boxes (`lo`, `hi`), grown by `pad`, overlap: else
+/// no point of one is within reach of the other.
+fn boxes_meet((lo_a, hi_a): (DVec3, DVec3), (lo_b, hi_b): (DVec3, DVec3), pad: f64) -> bool {
+    (lo_a - hi_b).max_element() < pad && (lo_b - hi_a).max_element() < pad
 }
 
 /// A contact seen from the body whose corner it is: normal from the other
