@@ -130,30 +130,10 @@ pub(crate) struct FeatureScratch {
     creases: Vec<(u32, u32)>,
     found: Vec<Contact>,
     /// The two bodies' triangles as the queries read them.
-    facets: [FacetCache; 2],
-    /// World positions of the two bodies' vertices, as they are needed.
-    vertices: [RefCell<VertexCache>; 2],
-}
-
-/// World positions of one body's vertices, each computed once per body pair
-/// (and so the same bits wherever it is used); NaN where not yet computed.
-#[derive(Debug, Default)]
-struct VertexCache {
-    world: Vec<DVec3>,
-    touched: Vec<u32>,
-}
-
-impl VertexCache {
-    /// Ready for a mesh of `n` vertices, all unknown.
-    fn reset(&mut self, n: usize) {
-        for &v in &self.touched {
-            self.world[v as usize] = DVec3::NAN;
-        }
-        self.touched.clear();
-        if self.world.len() < n {
-            self.world.resize(n, DVec3::NAN);
-        }
-    }
+    facets: [Memo<Facet>; 2],
+    /// World positions of the two bodies' vertices, each computed once per
+    /// body pair (and so the same bits wherever it is used).
+    vertices: [RefCell<Memo<DVec3>>; 2],
 }
 
 /// Which body a corner belongs to.
@@ -171,21 +151,15 @@ struct Solid<'a> {
     rotation: DMat3,
     mesh: &'a TriMesh,
     features: &'a Features,
-    vertices: &'a RefCell<VertexCache>,
+    vertices: &'a RefCell<Memo<DVec3>>,
 }
 
 impl Solid<'_> {
     #[inline]
     fn vertex(&self, v: u32) -> DVec3 {
-        let mut cache = self.vertices.borrow_mut();
-        let at = cache.world[v as usize];
-        if !at.x.is_nan() {
-            return at;
-        }
-        let at = self.body.x + self.rotation * self.mesh.vertices[v as usize];
-        cache.world[v as usize] = at;
-        cache.touched.push(v);
-        at
+        *self.vertices.borrow_mut().get(v, || {
+            self.body.x + self.rotation * self.mesh.vertices[v as usize]
+        })
     }
 
     fn direction(&self, local: DVec3) -> DVec3 {
@@ -267,8 +241,8 @@ fn queries(group: &[TriangleContact], sa: &Solid, sb: &Solid, reach: f64, s: &mu
     facets_a.reset(sa.mesh.triangles.len());
     facets_b.reset(sb.mesh.triangles.len());
     for t in group {
-        let fa = facets_a.get(sa, t.a.index, reach);
-        let fb = facets_b.get(sb, t.b.index, reach);
+        let fa = facets_a.get(t.a.index, || Facet::new(sa, t.a.index, reach));
+        let fb = facets_b.get(t.b.index, || Facet::new(sb, t.b.index, reach));
         let (tri_a, tri_b) = (fa.triangle, fb.triangle);
         let (pa, pb) = (&fa.corners, &fb.corners);
         // A corner (an edge) can touch the other triangle only if it is (a
@@ -361,38 +335,51 @@ impl Facet {
     }
 }
 
-/// The [`Facet`]s of one body's triangles, each computed once per body pair.
-#[derive(Debug, Default)]
-struct FacetCache {
-    /// Per triangle of the mesh, its slot in `facets` (`u32::MAX`: none yet).
+/// Values per element of a mesh (a vertex, a triangle), each computed at
+/// most once per body pair. A reset costs what the body pair used, not the
+/// size of the mesh: a large obstacle meets many small grains.
+#[derive(Debug)]
+struct Memo<T> {
+    /// Per element, its slot in `values` (`u32::MAX`: none yet).
     slot: Vec<u32>,
-    facets: Vec<Facet>,
+    values: Vec<T>,
     touched: Vec<u32>,
 }
 
-impl FacetCache {
-    /// Ready for a mesh of `n` triangles, none known.
+impl<T> Default for Memo<T> {
+    fn default() -> Self {
+        Memo {
+            slot: Vec::new(),
+            values: Vec::new(),
+            touched: Vec::new(),
+        }
+    }
+}
+
+impl<T> Memo<T> {
+    /// Ready for a mesh of `n` elements, none known.
     fn reset(&mut self, n: usize) {
-        for &t in &self.touched {
-            self.slot[t as usize] = u32::MAX;
+        for &i in &self.touched {
+            self.slot[i as usize] = u32::MAX;
         }
         self.touched.clear();
-        self.facets.clear();
+        self.values.clear();
         if self.slot.len() < n {
             self.slot.resize(n, u32::MAX);
         }
     }
 
+    /// Element `i`'s value, made by `make` the first time it is asked for.
     #[inline]
-    fn get(&mut self, solid: &Solid, t: u32, reach: f64) -> &Facet {
-        let mut at = self.slot[t as usize];
+    fn get(&mut self, i: u32, make: impl FnOnce() -> T) -> &T {
+        let mut at = self.slot[i as usize];
         if at == u32::MAX {
-            at = self.facets.len() as u32;
-            self.facets.push(Facet::new(solid, t, reach));
-            self.slot[t as usize] = at;
-            self.touched.push(t);
+            at = self.values.len() as u32;
+            self.values.push(make());
+            self.slot[i as usize] = at;
+            self.touched.push(i);
         }
-        &self.facets[at as usize]
+        &self.values[at as usize]
     }
 }
 
