@@ -36,6 +36,10 @@
 //! share of the ranks: a leaf's load is the product of its ancestors' splits,
 //! and these allowances, halving at each level, multiply to at most about
 //! 1 + 2 `reuse_slack` over the whole tree, whatever the number of ranks.
+//! A cut the work has shifted beyond its slack moves only back inside it,
+//! to its edge on the side the work went (as Zoltan's RCB, searching from
+//! its old cut, stops once within `IMBALANCE_TOL`), not to the median: it
+//! passes over the items the shift beyond the slack asks for, no more.
 
 use crate::comm::all_gather_v;
 use crate::cut_tree::{CutTree, Node};
@@ -253,11 +257,20 @@ impl Rcb {
                 let f = f64::from((r1 - r0) / 2) / f64::from(r1 - r0);
                 let slack = self.reuse_slack * share * f.min(1.0 - f) * gw[g];
                 let s = &mut searches[g];
-                if !s.done && (left[g] - s.target).abs() <= slack {
+                let off = left[g] - s.target;
+                if s.done {
+                    continue;
+                }
+                if off.abs() <= slack {
                     s.cut = value;
                     s.tie = tie;
                     s.done = true;
                     s.converged = true;
+                } else {
+                    // Only back inside the slack, on the side the work
+                    // shifted to: the cut passes over no more items than
+                    // the shift beyond the slack asks.
+                    s.target += off.signum() * (slack - s.tol).max(0.0);
                 }
             }
         }

@@ -237,6 +237,52 @@ fn a_reused_cut_stays_within_its_slack_and_follows_work_beyond_it() {
     }
 }
 
+/// A cut the work has shifted beyond its slack moves only back to the
+/// slack's edge, not to the median (as Zoltan's RCB stops once within its
+/// tolerance): on 2 ranks the one cut leaves the weight imbalance its
+/// slack allows, 1 + `reuse_slack`, where a partition from scratch balances,
+/// and moves fewer items than that partition does.
+#[test]
+fn a_cut_beyond_its_slack_moves_back_to_its_edge_only() {
+    let n = 8000u64;
+    let slack = partition::rcb::Rcb::default().reuse_slack;
+    let repartition = |mode: &str| -> (u64, f64) {
+        let r = MpiRun::new(example_binary("partition_check"))
+            .ranks(2)
+            .args([
+                "rcb",
+                "uniform",
+                &n.to_string(),
+                "0.005",
+                "0.01",
+                mode,
+                "1.5",
+            ])
+            .run()
+            .unwrap_or_else(|e| panic!("{mode}: {e}"));
+        assert_eq!(sum::<usize>(&r, "local_items_after"), n as usize);
+        let rep = &r.reports[0];
+        (rep.parse("remigrated_items"), rep.parse("imbalance_after"))
+    };
+    let (reused, at_edge) = repartition("reuse");
+    let (fresh, balanced) = repartition("fresh");
+    // One item's weight of granularity either way.
+    let grain = 0.002;
+    assert!(
+        (at_edge - (1.0 + slack)).abs() <= grain,
+        "reused: imbalance {at_edge}, the slack's edge {}",
+        1.0 + slack
+    );
+    assert!(
+        balanced <= 1.0 + grain,
+        "from scratch: imbalance {balanced}"
+    );
+    assert!(
+        reused < fresh,
+        "reused moved {reused}, from scratch {fresh}"
+    );
+}
+
 /// Byte exchanges in which some ranks send or receive nothing: an empty
 /// byte buffer's dangling pointer is Open MPI's MPI_IN_PLACE, which once made
 /// a migration abort (found when METIS gave every item to one rank).
