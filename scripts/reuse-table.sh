@@ -43,7 +43,7 @@ def load(name):
     return [json.loads(l) for l in open(os.path.join(tmp, name))]
 print("| scene | ranks | partitioner | first by work, reused / scratch | "
       "moved, reused | moved, from scratch | reused / scratch | "
-      "largest repartitioning, reused / scratch | a median repartitioning from scratch | "
+      "largest repartitioning, reused / scratch (drifted) | a median repartitioning from scratch | "
       "MB moved, reused / scratch | "
       "work-weighted pair imbalance, reused / scratch | work-weighted modelled-cost imbalance, reused / scratch |")
 print("|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -57,6 +57,7 @@ for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names
     # not. The partitions that follow the drift come after.
     first = {m: sum(r[1]["per_rank"]["migrated_bodies"]) for m, r in runs.items()}
     moved = {m: [sum(l["per_rank"]["migrated_bodies"]) for l in r[2:]] for m, r in runs.items()}
+    drifted = [sum(l["per_rank"]["drifted_bodies"]) for l in runs["reuse"][2:]]
     mb = {m: sum(sum(l["per_rank"]["migrated_bytes"]) for l in r[2:]) / 1e6 for m, r in runs.items()}
     # What the imbalance costs in time: the slowest rank's work summed over
     # the intervals against the mean's, so an interval weighs its work.
@@ -67,7 +68,7 @@ for scene, ranks, p in ((s, r, p) for s in scenes for r in (2, 4) for p in names
         return {m: of(r) for m, r in runs.items()}
     pairs, cost = weighted("triangle_pairs"), weighted("modelled_work_ns")
     k = max(range(len(moved["fresh"])), key=lambda i: moved["fresh"][i], default=None)
-    largest = "%d / %d" % (moved["reuse"][k], moved["fresh"][k]) if k is not None else "-"
+    largest = "%d / %d (%d)" % (moved["reuse"][k], moved["fresh"][k], drifted[k]) if k is not None else "-"
     fresh_sorted = sorted(moved["fresh"])
     median = "%d" % fresh_sorted[len(fresh_sorted) // 2] if fresh_sorted else "-"
     a, b = sum(moved["reuse"]), sum(moved["fresh"])
@@ -81,7 +82,9 @@ print("First by work: the bodies moved by the first repartitioning weighed by wo
       "Moved: bodies that changed rank over the repartitionings after it, which follow the "
       "particles' drift. Largest "
       "repartitioning: the one that moved most from scratch, and what the reusing run moved at "
-      "the same step. A median repartitioning from scratch: what the particles' drift alone moves "
+      "the same step; drifted: the bodies of the reusing run that had left their rank's region "
+      "of its previous partition by then (metric `drifted_bodies`), what keeping every cut "
+      "where it was would have moved. A median repartitioning from scratch: what the particles' drift alone moves "
       "over one interval, the floor under what a repartitioning that follows it can move. Imbalance: the most any rank did, summed over the 100-step intervals, over "
       "the mean's sum, so that an interval counts by its work, as it does in the run's time: of "
       "the triangle pairs checked, and of the work the partitioner balances, the `pairs` "

@@ -50,6 +50,10 @@ step_metrics! {
         /// Bodies and bytes that left this rank at a repartitioning.
         migrated_bodies,
         migrated_bytes,
+        /// At a repartitioning, the owned bodies that had left this rank's
+        /// region of the previous partition: what a partition keeping every
+        /// cut where it was would have moved.
+        drifted_bodies,
         /// Ghosts sent (one per body and receiving rank) and received, and
         /// their bytes.
         ghosts_sent,

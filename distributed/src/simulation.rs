@@ -845,6 +845,12 @@ impl<'c> DistributedSimulation<'c> {
             })
             .collect();
         self.since_partition = (0, 0.0);
+        // The partitioning at the start (or at a resume) has no regions
+        // before it for a body to leave.
+        if self.steps_run > 0 {
+            let left = |it: &&Item| self.part.owner(it.point).is_ok_and(|r| r != me);
+            self.metrics.drifted_bodies += items.iter().filter(left).count() as u64;
+        }
         let placed = self.part.partition(self.comm, &items);
         // Every rank learns whether any failed before any returns.
         let ok = i32::from(placed.is_ok());

@@ -682,6 +682,7 @@ fn metrics_count_every_rank_and_every_body_once() {
     let (r, lines) = run_with_metrics(3, &dir, &scene("silo-1000.toml"), &args);
     assert_eq!(lines.len(), 20);
     let mut migrated = 0.0;
+    let mut drifted = Vec::new();
     for l in &lines {
         assert_eq!(l["ranks"], 3);
         assert_eq!(l["sum"]["owned_bodies"], 1000.0, "{l}");
@@ -691,6 +692,7 @@ fn metrics_count_every_rank_and_every_body_once() {
         assert_eq!(l["sum"]["ghosts_sent"], l["sum"]["ghosts_received"], "{l}");
         assert!(l["triangle_imbalance"].as_f64().unwrap() >= 1.0);
         migrated += l["sum"]["migrated_bodies"].as_f64().unwrap();
+        drifted.push(l["sum"]["drifted_bodies"].as_f64().unwrap());
         // The slowest rank's busy time, carried by the all-reduce, is the
         // same on every rank and at least each rank's own, step by step.
         let column = |f: &str| -> Vec<f64> {
@@ -721,6 +723,12 @@ fn metrics_count_every_rank_and_every_body_once() {
     }
     // The first step places the bodies dealt out in turn.
     assert!(migrated > 0.0);
+    // The first partition has no regions before it for a body to leave;
+    // the repartitionings that follow find falling grains that crossed a
+    // cut, never more than the bodies there are.
+    assert_eq!(drifted[0], 0.0, "{drifted:?}");
+    assert!(drifted[1..].iter().any(|&d| d > 0.0), "{drifted:?}");
+    assert!(drifted.iter().all(|&d| d < 1000.0), "{drifted:?}");
     assert!(r.stdout.contains("wait_seconds"), "{}", r.stdout);
     let _ = std::fs::remove_dir_all(&dir);
 }
