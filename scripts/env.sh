@@ -10,3 +10,10 @@ if ! command -v cargo >/dev/null 2>&1 && [[ -f "$HOME/.cargo/env" ]]; then
   # shellcheck disable=SC1091
   source "$HOME/.cargo/env"
 fi
+# The measuring scripts' Python reads run.h5 and fits with numpy (Debian's
+# python3-h5py and python3-numpy, scripts/install-deps.sh): a python3 earlier
+# on PATH without them (pyenv's or a virtualenv's) gives way to Debian's.
+if ! python3 -c 'import numpy, h5py' 2>/dev/null && /usr/bin/python3 -c 'import numpy, h5py' 2>/dev/null; then
+  python3() { /usr/bin/python3 "$@"; }
+  export -f python3
+fi
