@@ -169,6 +169,20 @@ fn main() {
     if shift > 0.0 {
         spec.advance(&mut local, shift);
         weigh(&mut local.items, skew);
+        // What keeping every cut would move: the items now outside the
+        // region of the rank that holds them.
+        let outside = local
+            .items
+            .iter()
+            .filter(|i| part.owner(i.point).unwrap() != me)
+            .count() as u64;
+        let mut drifted = 0u64;
+        world.all_reduce_into(
+            &outside,
+            &mut drifted,
+            mpi::collective::SystemOperation::sum(),
+        );
+        out.kv("drifted_items", drifted);
         let owners = part.partition(&world, &local.items).unwrap();
         let (moved, ms) = migrate(&world, local, &owners);
         let mut total = 0u64;

@@ -40,6 +40,15 @@
 //! to its edge on the side the work went (as Zoltan's RCB, searching from
 //! its old cut, stops once within `IMBALANCE_TOL`), not to the median: it
 //! passes over the items the shift beyond the slack asks for, no more.
+//!
+//! Keeping a cut still moves the items that drifted across it since the
+//! last partitioning: they are held by the ranks of the half they left.
+//! Where they drifted together (grains settling towards a floor, flowing
+//! towards an outlet), moving the cut with them moves fewer. So of the
+//! candidate cuts of the bracket around the old cut whose split is within
+//! the slack, the one that moves the fewest items is taken, if it moves
+//! fewer than the old cut does: one more reduction of the bracket's
+//! histogram, with each bin's items counted by the half that holds them.
 
 use crate::comm::all_gather_v;
 use crate::cut_tree::{CutTree, Node};
@@ -119,6 +128,7 @@ impl Default for Rcb {
     }
 }
 
+#[derive(Debug, Clone, Copy)]
 struct Group {
     node: usize,
     r0: i32,
@@ -247,7 +257,11 @@ impl Rcb {
         }
         // Every rank holds the same tree, so all take this branch or none.
         if olds.iter().any(Option::is_some) {
-            let left = left_of_old_cuts(comm, items, &level.group_of, &olds);
+            let near: Vec<Option<(f64, f64)>> = (0..ng)
+                .map(|g| olds[g].map(|_| searches[g].bracket))
+                .collect();
+            let sides = self_sides(comm.rank(), &level.groups);
+            let around = around_old_cuts(comm, items, &level.group_of, &olds, &near, &sides);
             for &g in active {
                 let Some((_, value, tie)) = olds[g] else {
                     continue;
@@ -257,12 +271,21 @@ impl Rcb {
                 let f = f64::from((r1 - r0) / 2) / f64::from(r1 - r0);
                 let slack = self.reuse_slack * share * f.min(1.0 - f) * gw[g];
                 let s = &mut searches[g];
-                let off = left[g] - s.target;
                 if s.done {
                     continue;
                 }
-                if off.abs() <= slack {
-                    s.cut = value;
+                let view = around.group(g);
+                let off = view.left - s.target;
+                let kept = (off.abs() <= slack).then_some((view.kept_moves, value, tie));
+                let moved = view.least_moving(s.bracket, s.target, slack);
+                // The cut that moves fewer items, the old one among equals.
+                let choice = match (kept, moved) {
+                    (Some(k), Some(m)) if m.0 < k.0 => Some(m),
+                    (Some(k), _) => Some(k),
+                    (None, m) => m,
+                };
+                if let Some((_, cut, tie)) = choice {
+                    s.cut = cut;
                     s.tie = tie;
                     s.done = true;
                     s.converged = true;
@@ -507,25 +530,129 @@ fn goes_left(it: &Item, d: usize, c: f64, tie: Tie) -> bool {
     }
 }
 
-/// Per group, the weight of its items (over all ranks) at or below its old
-/// cut, for the groups that have one (collective).
-fn left_of_old_cuts(
+/// Which half of each group this rank's items are in now (before the
+/// repartitioning): the half whose ranks hold this one, `None` for the
+/// groups this rank is not in (its items in them move whatever the cut).
+fn self_sides(me: i32, groups: &[Group]) -> Vec<Option<Side>> {
+    groups
+        .iter()
+        .map(|&Group { r0, r1, .. }| {
+            let mid = r0 + (r1 - r0) / 2;
+            if (r0..mid).contains(&me) {
+                Some(Side::Left)
+            } else if (mid..r1).contains(&me) {
+                Some(Side::Right)
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Left,
+    Right,
+}
+
+/// Per group with an old cut, summed over all ranks: the weight at or below
+/// the cut, the items keeping it would move (those on the other side of it
+/// from the half of the ranks that holds them), and per bin of the bracket
+/// around it the weight and the items held by each half.
+struct AroundOldCuts {
+    flat: Vec<f64>,
+}
+
+/// Doubles per group: left weight, moves if kept, then (weight, held left,
+/// held right) for bins 0..=BINS + 1 (the last: above the bracket).
+const AROUND: usize = 2 + 3 * (BINS + 2);
+
+struct AroundOldCut<'a> {
+    left: f64,
+    kept_moves: f64,
+    bins: &'a [f64],
+}
+
+impl AroundOldCuts {
+    fn group(&self, g: usize) -> AroundOldCut<'_> {
+        let v = &self.flat[g * AROUND..(g + 1) * AROUND];
+        AroundOldCut {
+            left: v[0],
+            kept_moves: v[1],
+            bins: &v[2..],
+        }
+    }
+}
+
+impl AroundOldCut<'_> {
+    /// Of the bracket's candidate cuts whose left weight is within `slack`
+    /// of `target`, the one that moves the fewest items (then the closest
+    /// to the target, then the lowest): the cut follows items that drifted
+    /// across it together, as far as the slack lets it. Its moves, place
+    /// and tie (none: the items at it go left).
+    fn least_moving(
+        &self,
+        bracket: (f64, f64),
+        target: f64,
+        slack: f64,
+    ) -> Option<(f64, f64, Tie)> {
+        if bracket.0 >= bracket.1 {
+            return None;
+        }
+        let held_left: f64 = self.bins.iter().skip(1).step_by(3).sum();
+        let (mut w, mut l, mut r) = (0.0, 0.0, 0.0);
+        let mut best: Option<(f64, f64, usize)> = None;
+        for k in 0..=BINS {
+            w += self.bins[3 * k];
+            l += self.bins[3 * k + 1];
+            r += self.bins[3 * k + 2];
+            let miss = (w - target).abs();
+            if miss > slack {
+                continue;
+            }
+            let moves = r + (held_left - l);
+            if best.is_none_or(|(m, d, _)| (moves, miss) < (m, d)) {
+                best = Some((moves, miss, k));
+            }
+        }
+        best.map(|(moves, _, k)| (moves, candidate(bracket, k), None))
+    }
+}
+
+/// See [`AroundOldCuts`] (collective).
+fn around_old_cuts(
     comm: &SimpleCommunicator,
     items: &[Item],
     group_of: &[u32],
     olds: &[Option<OldCut>],
-) -> Vec<f64> {
-    let mut local = vec![0.0f64; olds.len()];
+    near: &[Option<(f64, f64)>],
+    sides: &[Option<Side>],
+) -> AroundOldCuts {
+    let mut local = vec![0.0f64; olds.len() * AROUND];
     for (it, &g) in items.iter().zip(group_of) {
-        if let Some((d, value, tie)) = olds[g as usize] {
-            if goes_left(it, d, value, tie) {
-                local[g as usize] += it.weight;
-            }
+        let g = g as usize;
+        let (Some((d, value, tie)), Some(bracket)) = (olds[g], near[g]) else {
+            continue;
+        };
+        let v = &mut local[g * AROUND..(g + 1) * AROUND];
+        let left = goes_left(it, d, value, tie);
+        if left {
+            v[0] += it.weight;
+        }
+        if sides[g] == Some(if left { Side::Right } else { Side::Left }) {
+            v[1] += 1.0;
+        }
+        let k = bin_of(it.point[d], bracket);
+        v[2 + 3 * k] += it.weight;
+        match sides[g] {
+            Some(Side::Left) => v[3 + 3 * k] += 1.0,
+            Some(Side::Right) => v[4 + 3 * k] += 1.0,
+            None => {}
         }
     }
-    let mut global = vec![0.0f64; olds.len()];
-    comm.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
-    global
+    let mut flat = vec![0.0f64; local.len()];
+    comm.all_reduce_into(&local[..], &mut flat[..], SystemOperation::sum());
+    AroundOldCuts { flat }
 }
 
 /// `h[g * (BINS + 1) + k]`: the weight of this rank's items of group g in

@@ -19,14 +19,19 @@ pub enum Workload {
     /// wider than tall (a column collapsing, in small): the items barely
     /// move, but the longest axis turns from z to x at time 0.02.
     Spreading,
+    /// A column twice as tall as wide settling towards its floor: every
+    /// height shrinks by one factor, a tenth over the run, so the items keep
+    /// their order along the column while they cross any fixed height.
+    Settling,
 }
 
 impl Workload {
-    pub const ALL: [Workload; 4] = [
+    pub const ALL: [Workload; 5] = [
         Workload::Uniform,
         Workload::Blobs,
         Workload::Hopper,
         Workload::Spreading,
+        Workload::Settling,
     ];
 
     pub fn name(self) -> &'static str {
@@ -35,6 +40,7 @@ impl Workload {
             Workload::Blobs => "blobs",
             Workload::Hopper => "hopper",
             Workload::Spreading => "spreading",
+            Workload::Settling => "settling",
         }
     }
 }
@@ -97,6 +103,11 @@ impl Workload {
                 unit(id, 1) * (0.99 + t),
                 0.5 * unit(id, 2),
                 unit(id, 3) * (1.01 - t),
+            ],
+            Workload::Settling => [
+                unit(id, 1),
+                unit(id, 2),
+                2.0 * unit(id, 3) * (1.0 - 0.1 * t),
             ],
         }
     }

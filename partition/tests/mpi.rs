@@ -283,6 +283,41 @@ fn a_cut_beyond_its_slack_moves_back_to_its_edge_only() {
     );
 }
 
+/// Items that drift across a cut together (a column settling towards its
+/// floor, crossing the cut's height in order) move nowhere when the cut
+/// follows them: the least-moving cut within the slack sits between the same
+/// items as before, so a repartitioning moves next to none of the items
+/// that keeping the cut would move, and leaves the imbalance within the
+/// slack's bound.
+#[test]
+fn a_cut_follows_items_that_drifted_across_it_together() {
+    let n = 8000u64;
+    let slack = partition::rcb::Rcb::default().reuse_slack;
+    for ranks in [2, 4] {
+        let r = MpiRun::new(example_binary("partition_check"))
+            .ranks(ranks)
+            .args(["rcb", "settling", &n.to_string(), "0.005", "0.2", "reuse"])
+            .run()
+            .unwrap_or_else(|e| panic!("{ranks} ranks: {e}"));
+        assert_eq!(sum::<usize>(&r, "local_items_after"), n as usize);
+        let rep = &r.reports[0];
+        let drifted: u64 = rep.parse("drifted_items");
+        let moved: u64 = rep.parse("remigrated_items");
+        let imbalance: f64 = rep.parse("imbalance_after");
+        // Heights shrink by 2%, so the items within 2% of the first cut's
+        // height above it cross it: about n / 100.
+        assert!(drifted * 200 > n, "{ranks} ranks: only {drifted} drifted");
+        assert!(
+            moved * 10 <= drifted,
+            "{ranks} ranks: moved {moved} where keeping the cuts moves {drifted}"
+        );
+        assert!(
+            imbalance <= 1.0 + 2.0 * slack + 0.005,
+            "{ranks} ranks: imbalance {imbalance}"
+        );
+    }
+}
+
 /// Byte exchanges in which some ranks send or receive nothing: an empty
 /// byte buffer's dangling pointer is Open MPI's MPI_IN_PLACE, which once made
 /// a migration abort (found when METIS gave every item to one rank).
