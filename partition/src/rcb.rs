@@ -257,11 +257,8 @@ impl Rcb {
         }
         // Every rank holds the same tree, so all take this branch or none.
         if olds.iter().any(Option::is_some) {
-            let near: Vec<Option<(f64, f64)>> = (0..ng)
-                .map(|g| olds[g].map(|_| searches[g].bracket))
-                .collect();
             let sides = self_sides(comm.rank(), &level.groups);
-            let around = around_old_cuts(comm, items, &level.group_of, &olds, &near, &sides);
+            let around = around_old_cuts(comm, items, &level.group_of, &olds, &searches, &sides);
             for &g in active {
                 let Some((_, value, tie)) = olds[g] else {
                     continue;
@@ -619,21 +616,23 @@ impl AroundOldCut<'_> {
     }
 }
 
-/// See [`AroundOldCuts`] (collective).
+/// See [`AroundOldCuts`]; the bins are those of each group's search
+/// bracket, which starts around its old cut (collective).
 fn around_old_cuts(
     comm: &SimpleCommunicator,
     items: &[Item],
     group_of: &[u32],
     olds: &[Option<OldCut>],
-    near: &[Option<(f64, f64)>],
+    searches: &[Search],
     sides: &[Option<Side>],
 ) -> AroundOldCuts {
     let mut local = vec![0.0f64; olds.len() * AROUND];
     for (it, &g) in items.iter().zip(group_of) {
         let g = g as usize;
-        let (Some((d, value, tie)), Some(bracket)) = (olds[g], near[g]) else {
+        let Some((d, value, tie)) = olds[g] else {
             continue;
         };
+        let bracket = searches[g].bracket;
         let v = &mut local[g * AROUND..(g + 1) * AROUND];
         let left = goes_left(it, d, value, tie);
         if left {
