@@ -21,5 +21,7 @@ pub mod weights;
 
 pub use ghosts::Exchange;
 pub use metrics::StepMetrics;
-pub use simulation::{merge_by_pair, DistributedSimulation, Settings, Start, CHECK_EVERY};
+pub use simulation::{
+    merge_by_pair, DistributedSimulation, Gathered, Settings, Start, CHECK_EVERY,
+};
 pub use weights::Weights;

@@ -1042,16 +1042,15 @@ impl<'c> DistributedSimulation<'c> {
     }
 
     /// The run's state on rank 0 (collective; `None` on the other ranks):
-    /// a checkpoint, and with `frame`, the output step it shows.
-    pub fn gather(&self, frame: bool) -> Option<(Checkpoint, Option<Frame>)> {
+    /// a checkpoint, and with `frame`, what the output step it shows adds.
+    pub fn gather(&self, frame: bool) -> Option<Gathered> {
         let shown = frame.then(|| self.gather_frame_parts());
-        let checkpoint = self.checkpoint();
-        let c = checkpoint?;
+        let checkpoint = self.checkpoint()?;
         let shown = match shown {
-            Some(parts) => Some(parts?.frame(&c)),
+            Some(parts) => Some(parts?),
             None => None,
         };
-        Some((c, shown))
+        Some(Gathered { checkpoint, shown })
     }
 
     /// The contacts and energy books of every rank, on rank 0 (collective).
@@ -1161,15 +1160,29 @@ struct FrameParts {
     books: EnergyBooks,
 }
 
-impl FrameParts {
-    fn frame(self, c: &Checkpoint) -> Frame {
-        Frame {
+/// The run's state gathered on rank 0 ([`DistributedSimulation::gather`]).
+pub struct Gathered {
+    pub checkpoint: Checkpoint,
+    shown: Option<FrameParts>,
+}
+
+impl Gathered {
+    /// `f` of the output step gathered (`None` if none was): a frame of the
+    /// checkpoint's bodies, which it lends and takes back rather than
+    /// copies, so that rank 0 holds the bodies' states once.
+    pub fn show<R>(&mut self, f: impl FnOnce(&Frame) -> R) -> Option<R> {
+        let parts = self.shown.as_ref()?;
+        let c = &mut self.checkpoint;
+        let frame = Frame {
             time: c.time,
             step: c.step,
-            bodies: c.bodies.clone(),
-            contacts: self.contacts.iter().map(ContactRecord::contact).collect(),
-            energies: self.books.rounded(),
-        }
+            bodies: std::mem::take(&mut c.bodies),
+            contacts: parts.contacts.iter().map(ContactRecord::contact).collect(),
+            energies: parts.books.rounded(),
+        };
+        let r = f(&frame);
+        c.bodies = frame.bodies;
+        Some(r)
     }
 }
 

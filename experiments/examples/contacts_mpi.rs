@@ -72,11 +72,13 @@ fn main() {
     out.kv("last_contacts", dist.metrics().contacts);
     out.kv("ghosts_sent", sent);
     out.kv("ghosts_received", received);
-    let Some((_, Some(frame))) = dist.gather(true) else {
+    let Some(split) = dist
+        .gather(true)
+        .and_then(|mut g| g.show(|frame| frame.contacts.iter().map(bits).collect::<Vec<_>>()))
+    else {
         return;
     };
     let one: Vec<Vec<u64>> = reference.frame().contacts.iter().map(bits).collect();
-    let split: Vec<Vec<u64>> = frame.contacts.iter().map(bits).collect();
     let differ = one.iter().zip(&split).filter(|(x, y)| x != y).count();
     out.kv("one_node_contacts", one.len());
     out.kv("gathered_contacts", split.len());

@@ -370,28 +370,54 @@ impl Output {
         }
     }
 
-    /// `/surface/triangles` and `/surface/body`: each body's mesh, its
-    /// vertices numbered after the bodies before it.
+    /// `/surface/triangles`, `/surface/body` and `/surface/material`: each
+    /// body's mesh, its vertices numbered after the bodies before it,
+    /// written a block of bodies at a time (never built whole: a large
+    /// scene's connectivity is its triangle count times 20 bytes).
     fn write_connectivity(&mut self) -> CliResult {
-        let mut triangles = Vec::with_capacity(self.triangles);
-        let mut body = Vec::with_capacity(self.triangles);
-        let mut material = Vec::with_capacity(self.triangles);
-        let materials: Vec<u32> = self.layout.per_body(|r| r.material as u32);
-        let mut first = 0u32;
-        for (i, &s) in self.layout.body_shapes.iter().enumerate() {
-            let m = &self.layout.shapes[s];
-            for t in &m.triangles {
-                triangles.push(t.map(|v| first + v));
-                body.push(i as u32);
-                material.push(materials[i]);
-            }
-            first += m.vertices.len() as u32;
-        }
         let g = self.file.create_group("surface").map_err(h5err)?;
-        let t = Array2::from_shape_fn((triangles.len(), 3), |(r, c)| triangles[r][c]);
-        put(&g, "triangles", &t)?;
-        put(&g, "body", &Array1::from(body))?;
-        put(&g, "material", &Array1::from(material))?;
+        let n = self.triangles;
+        let create = |name: &str, shape: &[usize]| {
+            g.new_dataset::<u32>()
+                .shape(shape)
+                .create(name)
+                .map_err(h5err)
+        };
+        let (triangles, body, material) = (
+            create("triangles", &[n, 3])?,
+            create("body", &[n])?,
+            create("material", &[n])?,
+        );
+        let Layout {
+            shapes,
+            body_shapes,
+            ..
+        } = &self.layout;
+        let materials: Vec<u32> = self.layout.per_body(|r| r.material as u32);
+        let widest = shapes.iter().map(|s| s.triangles.len()).max().unwrap_or(0);
+        let mut block = Connectivity::with_capacity(CONNECTIVITY_BLOCK + widest);
+        let (mut first_vertex, mut at, mut from) = (0u32, 0usize, 0usize);
+        for (i, &s) in body_shapes.iter().enumerate() {
+            let m = &shapes[s];
+            for t in &m.triangles {
+                block.triangles.extend(t.map(|v| first_vertex + v));
+                block.body.push(i as u32);
+                block.material.push(materials[i]);
+            }
+            first_vertex += m.vertices.len() as u32;
+            at += m.triangles.len();
+            if (block.body.len() >= CONNECTIVITY_BLOCK || i + 1 == body_shapes.len()) && at > from {
+                let t = ndarray::ArrayView2::from_shape((at - from, 3), &block.triangles)
+                    .expect("three vertices per triangle");
+                triangles.write_slice(t, (from..at, ..)).map_err(h5err)?;
+                body.write_slice(&block.body, from..at).map_err(h5err)?;
+                material
+                    .write_slice(&block.material, from..at)
+                    .map_err(h5err)?;
+                block.clear();
+                from = at;
+            }
+        }
         Ok(())
     }
 
@@ -592,13 +618,16 @@ impl Output {
             .shape((self.points, 3))
             .create("points")
             .map_err(h5err)?;
-        let mut block: Vec<f64> = Vec::new();
-        let (mut at, mut first) = (0usize, 0usize);
         let Layout {
             shapes,
             body_shapes,
             ..
         } = &self.layout;
+        // One block, sized once: it never grows by doubling, so what the
+        // surface holds at a time is the block, whatever the scene's size.
+        let widest = shapes.iter().map(|s| s.vertices.len()).max().unwrap_or(0);
+        let mut block: Vec<f64> = Vec::with_capacity(SURFACE_BLOCK + 3 * widest);
+        let (mut at, mut first) = (0usize, 0usize);
         for (i, state) in frame.bodies.iter().enumerate() {
             let vertices = &shapes[body_shapes[i]].vertices;
             for &v in vertices {
@@ -607,10 +636,10 @@ impl Output {
             }
             at += vertices.len();
             if block.len() >= SURFACE_BLOCK || i + 1 == frame.bodies.len() {
-                let rows = block.len() / 3;
-                let a = Array2::from_shape_vec((rows, 3), std::mem::take(&mut block))
+                let a = ndarray::ArrayView2::from_shape((block.len() / 3, 3), &block)
                     .expect("three coordinates per point");
-                d.write_slice(&a, (first..at, ..)).map_err(h5err)?;
+                d.write_slice(a, (first..at, ..)).map_err(h5err)?;
+                block.clear();
                 first = at;
             }
         }
@@ -793,8 +822,36 @@ fn attribute(
     );
 }
 
-/// Points per block of the surface written at once (as coordinates).
-const SURFACE_BLOCK: usize = 3 << 16;
+/// Triangles per block of the surface's connectivity written at once.
+const CONNECTIVITY_BLOCK: usize = 8192;
+
+/// One block of the surface's connectivity: per triangle, its vertices in
+/// the surface's numbering, its body and its body's material.
+struct Connectivity {
+    triangles: Vec<u32>,
+    body: Vec<u32>,
+    material: Vec<u32>,
+}
+
+impl Connectivity {
+    fn with_capacity(n: usize) -> Connectivity {
+        Connectivity {
+            triangles: Vec::with_capacity(3 * n),
+            body: Vec::with_capacity(n),
+            material: Vec::with_capacity(n),
+        }
+    }
+
+    fn clear(&mut self) {
+        self.triangles.clear();
+        self.body.clear();
+        self.material.clear();
+    }
+}
+
+/// Coordinates per block of the surface written at once: 8,192 points,
+/// 192 KiB.
+const SURFACE_BLOCK: usize = 3 << 13;
 
 /// The energy attributes of one output step, and the probes' (if any).
 fn write_energies(g: &hdf5::Group, frame: &Frame) -> CliResult {

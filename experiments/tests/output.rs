@@ -517,3 +517,55 @@ fn chart_draws_columns_of_a_csv_and_names_what_is_wrong() {
     assert!(err.contains("line 2") && err.contains("error"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The surface of a scene larger than the blocks it is written in (the
+/// boulders: 400,000 triangles): its connectivity is every body's mesh, as
+/// the scene builds it, with the vertices numbered body after body, and
+/// each step's points are the meshes placed at the step's poses.
+#[test]
+fn the_surface_is_every_body_mesh_in_order_across_blocks() {
+    let dir = temp("surface");
+    let _ = std::fs::remove_dir_all(&dir);
+    let (code, _, err) = tridem(&[
+        "run",
+        &scene("boulders.toml"),
+        "--steps",
+        "1",
+        "--output",
+        dir.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let s = Scene::load(std::path::Path::new(&scene("boulders.toml"))).unwrap();
+    let f = hdf5::File::open(dir.join("run.h5")).unwrap();
+    let root = f.group("/").unwrap();
+    let triangles: Array2<u32> = root.dataset("surface/triangles").unwrap().read_2d().unwrap();
+    let body: Array1<u32> = read1(&root, "surface/body");
+    let material: Array1<u32> = read1(&root, "surface/material");
+    let g = f.group("steps/0").unwrap();
+    let (x, q, points) = (
+        read2(&g, "positions"),
+        read2(&g, "orientations"),
+        read2(&g, "surface/points"),
+    );
+    let (mut t, mut first) = (0usize, 0usize);
+    for (i, b) in s.world.bodies.iter().enumerate() {
+        let mesh = &s.world.shapes[b.shape];
+        for tri in &mesh.triangles {
+            let row: Vec<u32> = tri.iter().map(|&v| v + first as u32).collect();
+            assert_eq!(triangles.row(t).to_vec(), row, "triangle {t}");
+            assert_eq!((body[t], material[t]), (i as u32, b.material as u32));
+            t += 1;
+        }
+        let qi = DQuat::from_xyzw(q[[i, 0]], q[[i, 1]], q[[i, 2]], q[[i, 3]]);
+        for (k, &v) in mesh.vertices.iter().enumerate() {
+            let p = vec3(&x, i) + qi * v;
+            let d = (vec3(&points, first + k) - p).length();
+            assert!(d <= 1e-12 * p.length(), "point {} of body {i}", first + k);
+        }
+        first += mesh.vertices.len();
+    }
+    assert!(t > 2 * 8192, "the scene fills more than two blocks");
+    assert_eq!((triangles.nrows(), points.nrows()), (t, first));
+    let _ = std::fs::remove_dir_all(&dir);
+}

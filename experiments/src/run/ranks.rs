@@ -14,7 +14,6 @@ use crate::cli::RunArgs;
 use crate::error::{CliError, CliResult};
 use crate::output::{Layout, Output};
 use dem::checkpoint::CheckpointShare;
-use dem::frame::Frame;
 use dem::scene::{Deal, Scene};
 use distributed::metrics::{imbalance, json_line, per_step_imbalance};
 use distributed::{DistributedSimulation, Settings, Start, StepMetrics};
@@ -368,23 +367,19 @@ fn write_gathered(
     output: bool,
     checkpoint: bool,
 ) -> CliResult {
-    let Some((c, frame)) = dist.gather(output) else {
+    let Some(mut gathered) = dist.gather(output) else {
         return Ok(());
     };
     let Some(w) = writer else {
         return Ok(());
     };
-    if let (Some(o), Some(f)) = (w.out.as_mut(), frame.as_ref()) {
-        write_frame(o, f)?;
+    if let Some(o) = w.out.as_mut() {
+        gathered.show(|f| o.write_step(f)).transpose()?;
     }
     match (&w.checkpoint, checkpoint) {
-        (Some(path), true) => checkpoint_file::write(path, &c),
+        (Some(path), true) => checkpoint_file::write(path, &gathered.checkpoint),
         _ => Ok(()),
     }
-}
-
-fn write_frame(o: &mut Output, f: &Frame) -> CliResult {
-    o.write_step(f)
 }
 
 /// Gathers an interval's metrics on rank 0, which writes a JSON line.
