@@ -524,22 +524,15 @@ fn chart_draws_columns_of_a_csv_and_names_what_is_wrong() {
 /// each step's points are the meshes placed at the step's poses.
 #[test]
 fn the_surface_is_every_body_mesh_in_order_across_blocks() {
-    let dir = temp("surface");
-    let _ = std::fs::remove_dir_all(&dir);
-    let (code, _, err) = tridem(&[
-        "run",
-        &scene("boulders.toml"),
-        "--steps",
-        "1",
-        "--output",
-        dir.to_str().unwrap(),
-        "--quiet",
-    ]);
-    assert_eq!(code, 0, "{err}");
+    let dir = common::run_into("boulders.toml", 1, temp("surface"));
     let s = Scene::load(std::path::Path::new(&scene("boulders.toml"))).unwrap();
     let f = hdf5::File::open(dir.join("run.h5")).unwrap();
     let root = f.group("/").unwrap();
-    let triangles: Array2<u32> = root.dataset("surface/triangles").unwrap().read_2d().unwrap();
+    let triangles: Array2<u32> = root
+        .dataset("surface/triangles")
+        .unwrap()
+        .read_2d()
+        .unwrap();
     let body: Array1<u32> = read1(&root, "surface/body");
     let material: Array1<u32> = read1(&root, "surface/material");
     let g = f.group("steps/0").unwrap();

@@ -37,12 +37,18 @@ pub fn scene(name: &str) -> String {
 /// The hopper run 4,000 steps into `dir` (emptied first): grains on the
 /// funnel, in contact, with every output field.
 pub fn hopper_run_into(dir: std::path::PathBuf) -> std::path::PathBuf {
+    run_into("hopper.toml", 4000, dir)
+}
+
+/// A shipped scene run `steps` steps with output into `dir` (emptied
+/// first).
+pub fn run_into(name: &str, steps: u64, dir: std::path::PathBuf) -> std::path::PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     let (code, _, err) = tridem(&[
         "run",
-        &scene("hopper.toml"),
+        &scene(name),
         "--steps",
-        "4000",
+        &steps.to_string(),
         "--output",
         dir.to_str().unwrap(),
         "--quiet",
