@@ -78,6 +78,19 @@ pub fn travel_bound(before: (DVec3, DQuat), after: &Body, radius: f64) -> f64 {
     let (x, q) = before;
     let turn = after.q * q.conjugate();
     let exact = (after.x - x).length() + 2.0 * radius * turn.xyz().length();
+    with_rounding(exact, after, radius)
+}
+
+/// A bound on how far `after`'s centre of mass moved from `before`, with
+/// the margins of [`travel_bound`]: what bounds the motion of a sphere of
+/// `radius` about the centre, which turning leaves where it is.
+#[inline]
+pub fn centre_travel_bound(before: DVec3, after: &Body, radius: f64) -> f64 {
+    with_rounding((after.x - before).length(), after, radius)
+}
+
+#[inline]
+fn with_rounding(exact: f64, after: &Body, radius: f64) -> f64 {
     exact * (1.0 + 1e-12) + 16.0 * f64::EPSILON * (after.x.length() + radius)
 }
 

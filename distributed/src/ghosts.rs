@@ -12,8 +12,9 @@
 //! s, s sends one to r (the two boxes that overlap belong one to each), so
 //! the per-step messages go both ways between the same neighbours.
 //!
-//! **When.** The lists hold while no body has moved farther than the pad
-//! since they were drawn (every box was inflated by that much); they
+//! **When.** The lists hold while no particle's centre has moved farther
+//! than the pad since they were drawn (every box was inflated by that much;
+//! turning leaves a sphere about the centre where it is); they
 //! are drawn anew then, and after a migration. Drawing them sends each new
 //! ghost whole ([`BodyRecord`]); in between, only motions travel, 13 numbers
 //! per ghost, in the order both sides agreed on (increasing id), no names.

@@ -22,6 +22,6 @@ pub mod weights;
 pub use ghosts::Exchange;
 pub use metrics::StepMetrics;
 pub use simulation::{
-    merge_by_pair, DistributedSimulation, Gathered, Settings, Start, CHECK_EVERY,
+    merge_by_pair, DistributedSimulation, Gathered, Settings, Start, CHECK_EVERY, GHOST_SKINS,
 };
 pub use weights::Weights;

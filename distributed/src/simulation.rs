@@ -22,10 +22,12 @@
 //!    and their contacts' history (through `dem::effects::ContactHistory`);
 //! 2. owners: half kick, drift; one all-reduce of the travel, the stop
 //!    flag and the failure flags;
-//! 3. once some body may have moved [`GHOST_SKINS`] half skins since the
-//!    ghost lists were drawn (or after a migration): draw them anew, ghosts
-//!    sent whole, the rank's world rebuilt, the broad phase run; once it
-//!    may have moved half the skin since the neighbour list was drawn: the
+//! 3. once some particle's centre may have moved [`GHOST_SKINS`] half
+//!    skins since the ghost lists were drawn (or after a migration; turning
+//!    moves no ghost box, a sphere about the centre): draw them anew, ghosts
+//!    sent whole, the rank's world rebuilt, the broad phase run; once any
+//!    point of a body may have moved half the skin since the neighbour list
+//!    was drawn: the
 //!    ghosts' motions exchanged first, the broad phase run on them;
 //!    otherwise the neighbour list is kept and:
 //! 4. the ghosts' motions are posted (non-blocking);
@@ -62,7 +64,7 @@ use dem::effects::{
     Forces, StepContext, StepStats,
 };
 use dem::frame::{EnergyBooks, Frame};
-use dem::integrate::{drift, half_kick, travel_bound};
+use dem::integrate::{centre_travel_bound, drift, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
@@ -396,7 +398,7 @@ impl<'c> DistributedSimulation<'c> {
             self.repartition()?;
         }
         let start = Instant::now();
-        let (moved, finite) = self.kick_and_drift();
+        let (moved, shifted, finite) = self.kick_and_drift();
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
         let h = self.dt;
@@ -409,8 +411,9 @@ impl<'c> DistributedSimulation<'c> {
             f64::from(u8::from(self.ctx.stats.detection.deep_contacts > 0)),
             f64::from(u8::from(due)),
             previous_busy,
+            shifted,
         ];
-        let mut global = [0.0; 6];
+        let mut global = [0.0; 7];
         self.comm
             .all_reduce_into(&flags[..], &mut global[..], SystemOperation::max());
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
@@ -440,7 +443,7 @@ impl<'c> DistributedSimulation<'c> {
         }
         // NaN travel (a body's state gone bad) redraws too.
         self.travel += global[0];
-        self.ghost_travel += global[0];
+        self.ghost_travel += global[6];
         let within = |travel: f64, pad: f64| travel <= pad;
         let redraw = if self.lists_stale || !within(self.ghost_travel, self.ghost_pad()) {
             Redraw::Ghosts
@@ -502,19 +505,24 @@ impl<'c> DistributedSimulation<'c> {
 
     /// Owners: half kick and drift; every rank: the moving walls to their
     /// place at the step's end. Returns the farthest any point of an owned
-    /// body or a moving wall moved, and whether every owned body's state is
-    /// finite (checked here, where the drift touches it last).
-    fn kick_and_drift(&mut self) -> (f64, bool) {
+    /// body or a moving wall moved (what the neighbour list's skin bounds),
+    /// the farthest an owned particle's centre moved (what the ghost lists'
+    /// pad bounds: their boxes are spheres about the centres, which turning
+    /// does not move), and whether every owned body's state is finite
+    /// (checked here, where the drift touches it last).
+    fn kick_and_drift(&mut self) -> (f64, f64, bool) {
         let (h, rot) = (self.dt, self.rotation);
         let (force, torque) = self.forces.all();
-        let mut moved: f64 = 0.0;
+        let (mut moved, mut shifted): (f64, f64) = (0.0, 0.0);
         let mut finite = true;
         for &i in &self.ctx.bodies {
             let b = &mut self.local.world.bodies[i];
             half_kick(b, force[i], torque[i], h, rot);
             let before = (b.x, b.q);
             drift(b, h, rot);
-            moved = moved.max(travel_bound(before, b, self.shape_radius[b.shape]));
+            let radius = self.shape_radius[b.shape];
+            moved = moved.max(travel_bound(before, b, radius));
+            shifted = shifted.max(centre_travel_bound(before.0, b, radius));
             finite &= b.is_finite();
         }
         let t_next = self.local.world.time + h;
@@ -526,7 +534,7 @@ impl<'c> DistributedSimulation<'c> {
                 self.local.world.bodies[i].follow_drive(t_next);
             }
         }
-        (moved, finite)
+        (moved, shifted, finite)
     }
 
     /// How far a body may move before the ghost lists are drawn anew: the

@@ -758,6 +758,37 @@ fn the_neighbour_list_is_redrawn_alone_between_ghost_lists() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Grains spinning in place: their triangles sweep past the neighbour
+/// list's skin every few steps while their centres hardly move. The ghost
+/// lists (spheres about the centres) are drawn for the centres' travel
+/// alone, so they outlast several times the neighbour lists that a pad of
+/// `GHOST_SKINS` half skins would allow if turning counted, and the split
+/// is still one process's run to the bit.
+#[test]
+fn turning_alone_does_not_redraw_the_ghost_lists() {
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/spinning-grains.toml");
+    let splits = [
+        (2, vec!["--threads", "1"]),
+        (3, vec!["--partitioner", "rcb"]),
+    ];
+    same_as_one_process("spinning", &file, "600", 5000, &splits);
+    let dir = temp("spinning-lists");
+    let (_, lines) = run_with_metrics(2, &dir, &file, &["--steps", "600"]);
+    for r in 0..2 {
+        let drawn = |f: &str| -> f64 {
+            (lines.iter())
+                .map(|l| l["per_rank"][f][r].as_f64().unwrap())
+                .sum()
+        };
+        let (ghost, neighbour) = (drawn("lists_drawn"), drawn("neighbour_lists_drawn"));
+        assert!(
+            ghost >= 1.0 && neighbour > 2.0 * distributed::GHOST_SKINS * ghost,
+            "rank {r}: ghost lists {ghost}, neighbour lists {neighbour}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_bad_scene_ends_every_rank_with_one_message() {
     let dir = temp("bad");
