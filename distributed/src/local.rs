@@ -75,15 +75,17 @@ impl Local {
     /// torque by its new index: a kept body's from `kept_loads` (by its old
     /// index; zero where it is short), a new body's from its entry.
     ///
-    /// The kept bodies are not taken out and put back: the merge runs from
-    /// the back of the world's own array, so that a rank never holds its
-    /// bodies twice, which at a redraw or a migration would be its peak of
-    /// memory. Refused if a stream is out of order or an id comes twice.
+    /// The merge is planned first (every body's new index, which also finds
+    /// an id given twice before anything changes), then each kept body moves
+    /// once, straight to its new slot, within the world's own array: a rank
+    /// never holds its bodies twice, which at a redraw or a migration would
+    /// be its peak of memory. Refused if a stream is out of order or an id
+    /// comes twice.
     pub fn admit(
         &mut self,
         keep: impl Fn(usize) -> bool,
         kept_loads: (&[DVec3], &[DVec3]),
-        mut streams: Vec<Vec<Entry>>,
+        streams: Vec<Vec<Entry>>,
     ) -> Result<Vec<(DVec3, DVec3)>, String> {
         for s in &streams {
             if let Some(w) = s.windows(2).find(|w| w[0].id >= w[1].id) {
@@ -93,98 +95,90 @@ impl Local {
                 ));
             }
         }
-        let kept = self.keep_in_place(keep, kept_loads);
-        let arriving: usize = streams.iter().map(Vec::len).sum();
-        let n = kept.ids.len();
-        let total = n + arriving;
+        let kept: Vec<usize> = (0..self.world.bodies.len()).filter(|&i| keep(i)).collect();
+        let w = &self.world;
+        let plan = Plan::of(|i| w.id(i), &kept, &streams)?;
+        self.move_kept(&kept, &plan.kept_to, &streams);
+        let loads = self.describe(&kept, &plan, kept_loads, &streams);
         let w = &mut self.world;
-        if let Some(e) = streams.iter().flatten().next() {
-            let filler = e.body.clone();
-            w.bodies.reserve_exact(arriving);
-            w.bodies.resize(total, filler);
-        }
-        // From the back: the largest id not yet placed goes to slot k.
-        let mut placed = Placed::with_capacity(total);
-        let mut i = n;
-        for k in (0..total).rev() {
-            let from_stream = streams
-                .iter()
-                .enumerate()
-                .filter_map(|(s, v)| v.last().map(|e| (e.id, s)))
-                .max();
-            let kept_id = i.checked_sub(1).map(|j| kept.ids[j]);
-            let id = match (from_stream, kept_id) {
-                (Some((a, s)), b) if b.is_none_or(|b| a > b) => {
-                    let e = streams[s].pop().expect("a last entry");
-                    let halo = w.materials[e.body.material].halo.unwrap_or(0.0);
-                    w.bodies[k] = e.body;
-                    placed.push(e.id, e.role, e.owner, halo, e.work, (e.force, e.torque));
-                    e.id
-                }
-                (_, b) => {
-                    let b = b.expect("total counts every body");
-                    i -= 1;
-                    w.bodies.swap(k, i);
-                    placed.push(
-                        b,
-                        kept.roles[i],
-                        kept.owner[i],
-                        kept.halos[i],
-                        kept.work[i],
-                        kept.loads[i],
-                    );
-                    b
-                }
-            };
-            if let Some(&after) = placed.ids.iter().rev().nth(1) {
-                if after == id {
-                    return Err(format!("body {id} came to this rank twice"));
-                }
+        for (s, stream) in streams.into_iter().enumerate() {
+            for (e, &k) in stream.into_iter().zip(&plan.new_to[s]) {
+                w.bodies[k] = e.body;
             }
         }
-        Ok(self.install(placed))
-    }
-
-    /// Compacts the world to the bodies `keep` names, in place, and returns
-    /// what they carry besides the bodies themselves.
-    fn keep_in_place(
-        &mut self,
-        keep: impl Fn(usize) -> bool,
-        loads: (&[DVec3], &[DVec3]),
-    ) -> Placed {
-        let w = &mut self.world;
-        let n = w.bodies.len();
-        let flags: Vec<bool> = (0..n).map(&keep).collect();
-        let mut at = 0;
-        w.bodies.retain(|_| {
-            at += 1;
-            flags[at - 1]
-        });
-        let mut kept = Placed::with_capacity(w.bodies.len());
-        for i in (0..n).filter(|&i| flags[i]) {
-            let load = (
-                loads.0.get(i).copied().unwrap_or_default(),
-                loads.1.get(i).copied().unwrap_or_default(),
-            );
-            let (id, role, owner) = (w.id(i), self.roles[i], self.owner[i]);
-            kept.push(id, role, owner, self.halos[i], self.work[i], load);
-        }
-        kept
-    }
-
-    /// Takes `placed` (gathered from the last body to the first) as the
-    /// bodies' ids, roles, owners, halos and work; returns their loads.
-    fn install(&mut self, mut p: Placed) -> Vec<(DVec3, DVec3)> {
-        p.reverse();
-        self.world.ids = p.ids;
-        self.roles = p.roles;
-        self.owner = p.owner;
-        self.halos = p.halos;
-        self.work = p.work;
+        w.bodies.truncate(plan.total);
         self.owned = (0..self.roles.len())
             .filter(|&i| self.roles[i] == Role::Own)
             .collect();
-        p.loads
+        Ok(loads)
+    }
+
+    /// Moves each kept body (old index `kept[j]`) to its new index
+    /// `to[j]`, in place. The order keeps every move's target free: a body
+    /// moving down goes after every kept body below it has (those go lower
+    /// still), a body moving up after every kept body above it, so a target
+    /// holds a body that is not kept or one already moved away. The slots
+    /// past the old end are filled first with a copy of an arriving body,
+    /// which the arrivals then overwrite.
+    fn move_kept(&mut self, kept: &[usize], to: &[usize], streams: &[Vec<Entry>]) {
+        let w = &mut self.world;
+        let total = to.len() + streams.iter().map(Vec::len).sum::<usize>();
+        if total > w.bodies.len() {
+            let filler = streams
+                .iter()
+                .flatten()
+                .next()
+                .expect("an arrival")
+                .body
+                .clone();
+            w.bodies.reserve_exact(total - w.bodies.len());
+            w.bodies.resize(total, filler);
+        }
+        let moves = kept.iter().zip(to);
+        for (&from, &k) in moves.clone().filter(|&(&from, &k)| k < from) {
+            w.bodies.swap(from, k);
+        }
+        for (&from, &k) in moves.rev().filter(|&(&from, &k)| k > from) {
+            w.bodies.swap(from, k);
+        }
+    }
+
+    /// Sets the bodies' ids, roles, owners, halos and work by their new
+    /// index from the kept bodies' old ones and the arrivals; returns their
+    /// loads.
+    fn describe(
+        &mut self,
+        kept: &[usize],
+        plan: &Plan,
+        kept_loads: (&[DVec3], &[DVec3]),
+        streams: &[Vec<Entry>],
+    ) -> Vec<(DVec3, DVec3)> {
+        let n = plan.total;
+        let mut ids = vec![0; n];
+        let mut roles = vec![Role::Own; n];
+        let mut owner = vec![0; n];
+        let mut halos = vec![0.0; n];
+        let mut work = vec![[0.0; 2]; n];
+        let mut loads = vec![(DVec3::ZERO, DVec3::ZERO); n];
+        for (&i, &k) in kept.iter().zip(&plan.kept_to) {
+            (ids[k], roles[k], owner[k]) = (self.world.id(i), self.roles[i], self.owner[i]);
+            (halos[k], work[k]) = (self.halos[i], self.work[i]);
+            loads[k] = (
+                kept_loads.0.get(i).copied().unwrap_or_default(),
+                kept_loads.1.get(i).copied().unwrap_or_default(),
+            );
+        }
+        let materials = &self.world.materials;
+        for (stream, to) in streams.iter().zip(&plan.new_to) {
+            for (e, &k) in stream.iter().zip(to) {
+                (ids[k], roles[k], owner[k]) = (e.id, e.role, e.owner);
+                halos[k] = materials[e.body.material].halo.unwrap_or(0.0);
+                (work[k], loads[k]) = (e.work, (e.force, e.torque));
+            }
+        }
+        self.world.ids = ids;
+        (self.roles, self.owner, self.halos, self.work) = (roles, owner, halos, work);
+        loads
     }
 
     /// The index of the body of id `id`, if this rank holds it.
@@ -211,53 +205,59 @@ impl Local {
     }
 }
 
-/// What a rank keeps of each body besides the body itself, in a merge.
-#[derive(Default)]
-struct Placed {
-    ids: Vec<u32>,
-    roles: Vec<Role>,
-    owner: Vec<i32>,
-    halos: Vec<f64>,
-    work: Vec<[f64; 2]>,
-    loads: Vec<(DVec3, DVec3)>,
+/// Where a merge puts each body: the kept ones' new indices (in the order
+/// of their old ones) and each stream's.
+struct Plan {
+    kept_to: Vec<usize>,
+    new_to: Vec<Vec<usize>>,
+    total: usize,
 }
 
-impl Placed {
-    fn with_capacity(n: usize) -> Placed {
-        Placed {
-            ids: Vec::with_capacity(n),
-            roles: Vec::with_capacity(n),
-            owner: Vec::with_capacity(n),
-            halos: Vec::with_capacity(n),
-            work: Vec::with_capacity(n),
-            loads: Vec::with_capacity(n),
+impl Plan {
+    /// The merge in id order of the kept bodies (`kept`, old indices into
+    /// the bodies whose ids `id` gives, increasing) and the streams (each in increasing id). Refused
+    /// if an id comes twice.
+    fn of(
+        id: impl Fn(usize) -> u32,
+        kept: &[usize],
+        streams: &[Vec<Entry>],
+    ) -> Result<Plan, String> {
+        let mut plan = Plan {
+            kept_to: Vec::with_capacity(kept.len()),
+            new_to: streams
+                .iter()
+                .map(|s| Vec::with_capacity(s.len()))
+                .collect(),
+            total: 0,
+        };
+        let mut at = vec![0; streams.len()];
+        let mut j = 0;
+        let mut last: Option<u32> = None;
+        loop {
+            let head = (streams.iter().enumerate())
+                .filter_map(|(s, v)| v.get(at[s]).map(|e| (e.id, s)))
+                .min();
+            let next_kept = kept.get(j).map(|&i| id(i));
+            let from_stream = head.filter(|&(a, _)| next_kept.is_none_or(|b| a < b));
+            let id = match (from_stream, next_kept) {
+                (Some((a, s)), _) => {
+                    at[s] += 1;
+                    plan.new_to[s].push(plan.total);
+                    a
+                }
+                (None, Some(b)) => {
+                    j += 1;
+                    plan.kept_to.push(plan.total);
+                    b
+                }
+                (None, None) => return Ok(plan),
+            };
+            if last == Some(id) {
+                return Err(format!("body {id} came to this rank twice"));
+            }
+            last = Some(id);
+            plan.total += 1;
         }
-    }
-
-    fn push(
-        &mut self,
-        id: u32,
-        role: Role,
-        owner: i32,
-        halo: f64,
-        work: [f64; 2],
-        load: (DVec3, DVec3),
-    ) {
-        self.ids.push(id);
-        self.roles.push(role);
-        self.owner.push(owner);
-        self.halos.push(halo);
-        self.work.push(work);
-        self.loads.push(load);
-    }
-
-    fn reverse(&mut self) {
-        self.ids.reverse();
-        self.roles.reverse();
-        self.owner.reverse();
-        self.halos.reverse();
-        self.work.reverse();
-        self.loads.reverse();
     }
 }
 
@@ -358,6 +358,59 @@ mod tests {
         assert_eq!(loads[1].0, DVec3::splat(2.0));
         assert_eq!(loads[3].0, DVec3::splat(5.0));
         assert_eq!(loads[4].0, DVec3::splat(7.0));
+    }
+
+    /// Admitting is a merge by id: on many random worlds, kept sets and
+    /// arrivals, the rank's bodies, roles, owners and loads are those of
+    /// the kept and the arrived sorted by id, as a plain sort finds them.
+    #[test]
+    fn admitting_is_a_sort_of_the_kept_and_the_arrived_by_id() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move |n: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % n
+        };
+        for _ in 0..300 {
+            let mut l = local();
+            let old: Vec<u32> = (0..200).filter(|_| next(3) == 0).collect();
+            let role = |id: u32| [Role::Own, Role::Ghost, Role::Obstacle][id as usize % 3];
+            l.merge(vec![old.iter().map(|&id| entry(id, role(id))).collect()])
+                .unwrap();
+            let keep: Vec<bool> = old.iter().map(|_| next(4) != 0).collect();
+            let loads: Vec<DVec3> = old.iter().map(|&id| DVec3::splat(-f64::from(id))).collect();
+            let kept: Vec<u32> = (old.iter().zip(&keep))
+                .filter_map(|(&id, &k)| k.then_some(id))
+                .collect();
+            let mut streams = vec![Vec::new(); 1 + next(3) as usize];
+            let arriving: Vec<u32> = (0..200).filter(|id| !kept.contains(id)).collect();
+            for id in arriving {
+                if next(4) != 0 {
+                    continue;
+                }
+                let s = next(streams.len() as u64) as usize;
+                streams[s].push(entry(id, Role::Ghost));
+            }
+            let mut want: Vec<(u32, Role, f64)> = (kept.iter())
+                .map(|&id| (id, role(id), -f64::from(id)))
+                .chain(streams.iter().flatten().map(|e| (e.id, e.role, e.force.x)))
+                .collect();
+            want.sort_by_key(|w| w.0);
+            let got = l.admit(|i| keep[i], (&loads, &loads), streams).unwrap();
+            let ids: Vec<u32> = want.iter().map(|w| w.0).collect();
+            assert_eq!(l.world.ids, ids);
+            let xs: Vec<f64> = l.world.bodies.iter().map(|b| b.x.x).collect();
+            let want_x: Vec<f64> = ids.iter().map(|&id| f64::from(id)).collect();
+            assert_eq!(xs, want_x);
+            let roles: Vec<Role> = want.iter().map(|w| w.1).collect();
+            assert_eq!(l.roles, roles);
+            let f: Vec<f64> = got.iter().map(|g| g.0.x).collect();
+            assert_eq!(f, want.iter().map(|w| w.2).collect::<Vec<_>>());
+            let owned: Vec<usize> = (0..ids.len()).filter(|&i| roles[i] == Role::Own).collect();
+            assert_eq!(l.owned, owned);
+            assert_eq!(l.halos, vec![0.5; ids.len()]);
+        }
     }
 
     /// Kept in place, a kept body whose id arrives again is refused.
