@@ -214,9 +214,9 @@ struct Plan {
 }
 
 impl Plan {
-    /// The merge in id order of the kept bodies (`kept`, old indices into
-    /// the bodies whose ids `id` gives, increasing) and the streams (each in increasing id). Refused
-    /// if an id comes twice.
+    /// The merge in id order of the kept bodies (`kept`: old indices, in
+    /// increasing order, whose ids `id` gives) and the streams (each in
+    /// increasing id). Refused if an id comes twice.
     fn of(
         id: impl Fn(usize) -> u32,
         kept: &[usize],
@@ -405,6 +405,8 @@ mod tests {
             assert_eq!(xs, want_x);
             let roles: Vec<Role> = want.iter().map(|w| w.1).collect();
             assert_eq!(l.roles, roles);
+            let owners: Vec<i32> = roles.iter().map(|&r| i32::from(r != Role::Own)).collect();
+            assert_eq!(l.owner, owners);
             let f: Vec<f64> = got.iter().map(|g| g.0.x).collect();
             assert_eq!(f, want.iter().map(|w| w.2).collect::<Vec<_>>());
             let owned: Vec<usize> = (0..ids.len()).filter(|&i| roles[i] == Role::Own).collect();

@@ -761,9 +761,9 @@ fn the_neighbour_list_is_redrawn_alone_between_ghost_lists() {
 /// Grains spinning in place: their triangles sweep past the neighbour
 /// list's skin every few steps while their centres hardly move. The ghost
 /// lists (spheres about the centres) are drawn for the centres' travel
-/// alone, so they outlast several times the neighbour lists that a pad of
-/// `GHOST_SKINS` half skins would allow if turning counted, and the split
-/// is still one process's run to the bit.
+/// alone: were turning counted, a pad of `GHOST_SKINS` half skins would
+/// redraw them at least once per `GHOST_SKINS` neighbour lists; here they
+/// outlast twice that many, and the split is one process's run to the bit.
 #[test]
 fn turning_alone_does_not_redraw_the_ghost_lists() {
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/spinning-grains.toml");
