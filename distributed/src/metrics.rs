@@ -187,11 +187,9 @@ pub fn per_step_imbalance(ranks: &[StepMetrics]) -> f64 {
 pub fn json_line(ranks: &[StepMetrics]) -> serde_json::Value {
     let mut per_rank = serde_json::Map::new();
     let mut sum = serde_json::Map::new();
-    for (name, _) in StepMetrics::default().fields() {
-        let column: Vec<f64> = ranks
-            .iter()
-            .map(|m| m.fields().iter().find(|f| f.0 == name).map_or(0.0, |f| f.1))
-            .collect();
+    let rows: Vec<_> = ranks.iter().map(StepMetrics::fields).collect();
+    for (k, (name, _)) in StepMetrics::default().fields().into_iter().enumerate() {
+        let column: Vec<f64> = rows.iter().map(|row| row[k].1).collect();
         sum.insert(name.into(), column.iter().sum::<f64>().into());
         per_rank.insert(name.into(), column.into());
     }

@@ -33,7 +33,8 @@ pub(crate) trait Driven {
     /// Where the checkpoint is written, if the run writes one (on the rank
     /// that writes).
     fn checkpoint_path(&self) -> Option<&Path>;
-    /// What follows step `s` of the run (`last`: the run's last): metrics.
+    /// What follows step `s` of the run (`last`: the run's last, or the
+    /// step it stops or fails after): metrics.
     fn after_step(&mut self, _s: u64, _last: bool) -> CliResult {
         Ok(())
     }
@@ -84,12 +85,13 @@ fn step_loop(
 ) -> CliResult<Option<u64>> {
     for s in 1..=steps {
         let stopping = run.step(stop.load(Ordering::Relaxed))?;
-        if run.deep_steps_in_a_row() >= DEEP_STEPS && !scene.allow_deep_contacts {
+        let crossing = run.deep_steps_in_a_row() >= DEEP_STEPS && !scene.allow_deep_contacts;
+        run.after_step(s, s == steps || stopping || crossing)?;
+        if crossing {
             let crossed = run.crossed_pairs();
             let e = lasting_crossings(scene, run.step_number(), run.time(), crossed);
             return Err(run.together(e));
         }
-        run.after_step(s, s == steps)?;
         if run.step_number().is_multiple_of(scene.output_every) {
             run.write(true, true)?;
         }

@@ -155,6 +155,7 @@ pub(crate) fn run(args: &RunArgs, comm: &SimpleCommunicator) -> CliResult {
         writer,
         totals: StepMetrics::default(),
         interval: StepMetrics::default(),
+        pending: Vec::new(),
     };
     run_steps(&mut run, args, &scene, steps, &stop)?;
     let secs = start.elapsed().as_secs_f64();
@@ -258,9 +259,30 @@ struct Ranks<'a> {
     args: &'a RunArgs,
     dist: DistributedSimulation<'a>,
     writer: Option<Writer>,
-    /// The run's metrics so far, and those of the interval not yet written.
+    /// The run's metrics so far, those of the interval not yet ended, and
+    /// the ended intervals not yet written.
     totals: StepMetrics,
     interval: StepMetrics,
+    pending: Vec<StepMetrics>,
+}
+
+/// Metrics lines gathered and written together. A line gathered and
+/// written alone makes every rank meet once more each interval, and the
+/// time rank 0 spends writing it the others spend waiting: with a line per
+/// step, a cost comparable with a short step's own. The lines, and what
+/// they say, are the same either way.
+const LINES_AT_ONCE: usize = 64;
+
+impl Ranks<'_> {
+    /// Writes the ended intervals' lines (collective).
+    fn flush_metrics(&mut self) -> CliResult {
+        if self.pending.is_empty() {
+            return Ok(());
+        }
+        let written = write_metrics(self.comm, &self.pending, self.writer.as_mut());
+        self.pending.clear();
+        agree(self.comm, written)
+    }
 }
 
 impl Driven for Ranks<'_> {
@@ -268,6 +290,11 @@ impl Driven for Ranks<'_> {
     /// same outcome.
     fn step(&mut self, stop: bool) -> CliResult<bool> {
         let stepped = self.dist.step(stop).map_err(CliError::runtime);
+        if stepped.is_err() {
+            // Every rank fails this step together: the lines of the steps
+            // before it are still written.
+            self.flush_metrics()?;
+        }
         stepped.map_err(|e| on_every_rank(self.comm, e))
     }
 
@@ -306,9 +333,10 @@ impl Driven for Ranks<'_> {
         self.totals.accumulate(self.dist.metrics());
         self.interval.extend_interval(self.dist.metrics());
         if self.args.metrics.is_some() && (s.is_multiple_of(self.args.metrics_every) || last) {
-            let interval = std::mem::take(&mut self.interval);
-            let written = write_metrics(self.comm, &interval, self.writer.as_mut());
-            agree(self.comm, written)?;
+            self.pending.push(std::mem::take(&mut self.interval));
+            if self.pending.len() >= LINES_AT_ONCE || last {
+                self.flush_metrics()?;
+            }
         }
         Ok(())
     }
@@ -382,18 +410,28 @@ fn write_gathered(
     }
 }
 
-/// Gathers an interval's metrics on rank 0, which writes a JSON line.
-/// Collective (on every rank, when the run writes metrics).
+/// Gathers the metrics of `intervals` on rank 0, which writes a JSON line
+/// for each. Collective (on every rank, when the run writes metrics; every
+/// rank holds the same number of intervals).
 fn write_metrics(
     comm: &SimpleCommunicator,
-    interval: &StepMetrics,
+    intervals: &[StepMetrics],
     writer: Option<&mut Writer>,
 ) -> CliResult {
-    let ranks = gather_v(comm, 0, std::slice::from_ref(interval));
-    let (Some(ranks), Some((path, file))) = (ranks, writer.and_then(|w| w.metrics.as_mut())) else {
+    let all = gather_v(comm, 0, intervals);
+    let (Some(all), Some((path, file))) = (all, writer.and_then(|w| w.metrics.as_mut())) else {
         return Ok(());
     };
-    writeln!(file, "{}", json_line(&ranks))
+    let n = intervals.len();
+    let mut lines = (0..n).map(|k| {
+        all.iter()
+            .skip(k)
+            .step_by(n.max(1))
+            .copied()
+            .collect::<Vec<_>>()
+    });
+    lines
+        .try_for_each(|ranks| writeln!(file, "{}", json_line(&ranks)))
         .and_then(|_| file.flush())
         .map_err(|e| CliError::runtime(format!("{}: cannot write: {e}", path.display())))
 }
