@@ -675,6 +675,42 @@ fn a_full_disk_names_the_file() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Metrics lines written in batches come out one per step, in step order,
+/// each of one step's ranks: past a batch's end and in the part-filled last.
+#[test]
+fn metrics_lines_come_one_per_step_in_order_across_batches() {
+    let dir = temp("metrics-batches");
+    let metrics = dir.join("m.jsonl");
+    let hopper = scene("hopper.toml");
+    let args = [
+        "run",
+        hopper.to_str().unwrap(),
+        "--quiet",
+        "--steps",
+        "150",
+        "--metrics",
+        metrics.to_str().unwrap(),
+        "--metrics-every",
+        "1",
+    ];
+    let r = run(2, &args);
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    let text = std::fs::read_to_string(&metrics).unwrap();
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), 150);
+    for (k, l) in lines.iter().enumerate() {
+        assert_eq!(l["step"], k as u64 + 1, "{l}");
+        assert_eq!(l["per_rank"]["owned_bodies"].as_array().unwrap().len(), 2);
+        // One step's ranks: every body owned once, what is sent received.
+        assert_eq!(l["sum"]["owned_bodies"], 100.0, "{l}");
+        assert_eq!(l["sum"]["ghosts_sent"], l["sum"]["ghosts_received"], "{l}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn metrics_count_every_rank_and_every_body_once() {
     let dir = temp("metrics");

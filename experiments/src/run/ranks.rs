@@ -292,8 +292,9 @@ impl Driven for Ranks<'_> {
         let stepped = self.dist.step(stop).map_err(CliError::runtime);
         if stepped.is_err() {
             // Every rank fails this step together: the lines of the steps
-            // before it are still written.
-            self.flush_metrics()?;
+            // before it are still written, and the step's failure is the
+            // error reported.
+            let _ = self.flush_metrics();
         }
         stepped.map_err(|e| on_every_rank(self.comm, e))
     }
