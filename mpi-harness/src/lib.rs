@@ -17,11 +17,13 @@
 //! assert_eq!(run.reports.len(), 2);
 //! ```
 
+use std::ffi::OsString;
 use std::fmt;
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 /// Environment variable naming the directory where ranks write their reports.
@@ -132,17 +134,35 @@ pub fn launch_args(ranks: usize) -> Vec<String> {
     }
 }
 
-/// Environment for Open MPI on a single machine, possibly as root, in a container.
-pub fn open_mpi_local_env() -> Vec<(&'static str, &'static str)> {
+/// Environment for Open MPI on a single machine, possibly as root, in a
+/// container; each call names a session directory of its own.
+///
+/// Open MPI 4 keeps a run's session files under `$TMPDIR/ompi.<host>.<uid>`,
+/// and mpiruns started at the same moment (tests run in parallel) race to
+/// create that directory: "mkdir ... File exists", then orte_init fails
+/// (open-mpi/ompi#8510). A directory per launch avoids the race, whoever
+/// starts the launcher.
+pub fn open_mpi_local_env() -> Vec<(&'static str, OsString)> {
     vec![
-        ("OMPI_ALLOW_RUN_AS_ROOT", "1"),
-        ("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1"),
+        ("OMPI_ALLOW_RUN_AS_ROOT", "1".into()),
+        ("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1".into()),
         // Containers often forbid the cross-memory-attach shared memory uses.
-        ("OMPI_MCA_btl_vader_single_copy_mechanism", "none"),
+        ("OMPI_MCA_btl_vader_single_copy_mechanism", "none".into()),
         // No network beyond loopback here: keep Open MPI from probing interfaces.
-        ("OMPI_MCA_btl", "self,vader"),
-        ("OMPI_MCA_rmaps_base_oversubscribe", "1"),
+        ("OMPI_MCA_btl", "self,vader".into()),
+        ("OMPI_MCA_rmaps_base_oversubscribe", "1".into()),
+        ("OMPI_MCA_orte_tmpdir_base", session_dir().into_os_string()),
     ]
+}
+
+/// A fresh directory for one launch's Open MPI session files.
+fn session_dir() -> PathBuf {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let n = NEXT.fetch_add(1, Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("mpi-session-{}-{n}", std::process::id()));
+    // A launcher that cannot use it says so itself, naming the directory.
+    let _ = fs::create_dir_all(&dir);
+    dir
 }
 
 /// A configured run of one program under mpirun.
@@ -261,14 +281,6 @@ impl MpiRun {
         for (k, v) in open_mpi_local_env() {
             cmd.env(k, v);
         }
-        // Open MPI 4 keeps a run's session files under $TMPDIR/ompi.<host>.<uid>,
-        // and mpiruns started at the same moment (tests run in parallel) race
-        // to create that directory: "mkdir ... File exists", then orte_init
-        // fails (open-mpi/ompi#8510; it failed CI once here). A directory of
-        // its own per run avoids the race.
-        let session = dir.join("mpi-session");
-        fs::create_dir_all(&session)?;
-        cmd.env("OMPI_MCA_orte_tmpdir_base", &session);
         for (k, v) in &self.env {
             cmd.env(k, v);
         }
