@@ -1,11 +1,12 @@
 //! The step pipeline: scene -> world -> effects -> integration.
 
+use crate::body::Body;
 use crate::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
 use crate::effects::{
     book_entries, insert_due, Alone, Effect, Forces, Setting, StepContext, StepStats,
 };
 use crate::frame::{EnergyBooks, Frame, FrameContact};
-use crate::integrate::{drift, half_kick, travel_bound};
+use crate::integrate::{drift_many, half_kick, travel_bound};
 use crate::scene::Scene;
 use crate::timing::{seconds_since, SectionTimes};
 use crate::world::World;
@@ -208,18 +209,22 @@ impl Simulation {
         let moved = self
             .world
             .bodies
-            .par_iter_mut()
+            .par_chunks_mut(INTEGRATION_GRAIN)
             .enumerate()
-            .with_min_len(INTEGRATION_GRAIN)
-            .map(|(i, b)| {
-                if b.is_out() {
-                    return 0.0;
+            .map(|(c, chunk)| {
+                let base = c * INTEGRATION_GRAIN;
+                let ids: Vec<usize> = (0..chunk.len()).filter(|&k| !chunk[k].is_out()).collect();
+                for &k in &ids {
+                    half_kick(&mut chunk[k], force[base + k], torque[base + k], h, rot);
                 }
-                half_kick(b, force[i], torque[i], h, rot);
-                let before = (b.x, b.q);
-                drift(b, h, rot);
-                b.follow_drive(t_next);
-                travel_bound(before, b, radius[b.shape])
+                let before: Vec<_> = ids.iter().map(|&k| (chunk[k].x, chunk[k].q)).collect();
+                drift_many(chunk, &ids, h, rot);
+                let bound = |(&k, before): (&usize, _)| {
+                    let b: &mut Body = &mut chunk[k];
+                    b.follow_drive(t_next);
+                    travel_bound(before, b, radius[b.shape])
+                };
+                ids.iter().zip(before).map(bound).fold(0.0, f64::max)
             })
             .reduce(|| 0.0, f64::max);
         self.ctx.moved = (!std::mem::take(&mut self.motion_unknown)).then_some(moved);

@@ -64,7 +64,7 @@ use dem::effects::{
     Forces, StepContext, StepStats,
 };
 use dem::frame::{EnergyBooks, Frame};
-use dem::integrate::{centre_travel_bound, drift, half_kick, travel_bound};
+use dem::integrate::{centre_travel_bound, drift_many, half_kick, travel_bound};
 use dem::ledger::ExactSum;
 use dem::mesh::Features;
 use dem::scene::{Deal, Scene};
@@ -72,7 +72,7 @@ use dem::simulation::{
     build_effects, check_share, energy_books, frame_contacts, shape_radii, split_out, take_out,
     NonFinite,
 };
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -515,11 +515,14 @@ impl<'c> DistributedSimulation<'c> {
         let (force, torque) = self.forces.all();
         let (mut moved, mut shifted): (f64, f64) = (0.0, 0.0);
         let mut finite = true;
-        for &i in &self.ctx.bodies {
-            let b = &mut self.local.world.bodies[i];
-            half_kick(b, force[i], torque[i], h, rot);
-            let before = (b.x, b.q);
-            drift(b, h, rot);
+        let (ids, bodies) = (&self.ctx.bodies, &mut self.local.world.bodies);
+        for &i in ids {
+            half_kick(&mut bodies[i], force[i], torque[i], h, rot);
+        }
+        let before: Vec<(DVec3, DQuat)> = ids.iter().map(|&i| (bodies[i].x, bodies[i].q)).collect();
+        drift_many(bodies, ids, h, rot);
+        for (&i, before) in ids.iter().zip(before) {
+            let b = &bodies[i];
             let radius = self.shape_radius[b.shape];
             moved = moved.max(travel_bound(before, b, radius));
             shifted = shifted.max(centre_travel_bound(before.0, b, radius));

@@ -62,7 +62,7 @@ pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, Tria
 use triangle_set::{Part, PassPairs, PassSet};
 
 use crate::distance::{distance_many_serial, Closest, Counts, Options, PenaltyStats, Triangle};
-use crate::integrate::travel_bound;
+use crate::integrate::relative_travel_bound;
 use crate::mesh::Features;
 use crate::timing::{seconds_since, DetectionTimes};
 use crate::world::World;
@@ -142,8 +142,9 @@ struct PairMemo {
     /// The direction that last separated (or nearly) its bodies' hulls,
     /// zero when not yet known (see [`separation::apart`]).
     hint: DVec3,
-    /// While the two bodies' displacements since `poses` (bounded by
-    /// [`travel_bound`]) add up to less than this, `near` still holds every
+    /// While the two bodies' displacement relative to one another since
+    /// `poses` (bounded by [`relative_travel_bound`]) stays under this,
+    /// `near` still holds every
     /// triangle pair of theirs within reach (0: no such certificate). It is
     /// what the examination showed: the hulls' clearance beyond the reach
     /// (see [`separation::clearance`]), or the margin of `near`.
@@ -910,13 +911,11 @@ impl Task {
         } = *pass;
         let remember = !radii.is_empty();
         let pose = |body: usize| (world.bodies[body].x, world.bodies[body].q);
-        // How far any point of the memo's bodies may be from where it was.
+        // How far any point of one of the memo's bodies may have moved
+        // relative to any point of the other since.
         let moved_since = |memo: &PairMemo, bodies: [usize; 2]| -> f64 {
-            let moved = |(before, body): ((DVec3, DQuat), usize)| {
-                let b = &world.bodies[body];
-                travel_bound(before, b, radii[b.shape])
-            };
-            moved((memo.poses[0], bodies[0])) + moved((memo.poses[1], bodies[1]))
+            let after = bodies.map(|i| &world.bodies[i]);
+            relative_travel_bound(memo.poses, after, after.map(|b| radii[b.shape]))
         };
         let group_body = |g: usize| set.groups()[g].body as usize;
         self.body_pairs = 0;
