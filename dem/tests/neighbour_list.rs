@@ -120,3 +120,128 @@ fn bodies_moved_by_hand_are_followed_after_forget_motion() {
         "the moved particle touches the other"
     );
 }
+
+/// Grains that fall together, turning, onto a floor: the list holds while
+/// they fall, however far (their displacements spread little, and the floor
+/// is far), and is drawn anew as they near the floor and land, with one
+/// process's contacts and motion to the bit. A rule on each body's own
+/// travel would draw it every half skin of the fall, a hundred times.
+#[test]
+fn grains_falling_together_keep_the_list_until_they_near_the_floor() {
+    let text = format!(
+        r#"
+        [simulation]
+        dt = 5e-5
+        end_time = 1.0
+        [effects]
+        gravity = {{ g = [0.0, 0.0, -9.81] }}
+        contact = {{ skin = 1e-3 }}
+        friction = {{}}
+        rotation = {{}}
+        {}
+        [[particles]]
+        material = "grain"
+        shape = {{ kind = "hull", triangles = 20, radius = 0.005, seed = 5 }}
+        placement = {{ kind = "lattice", count = [3, 3, 2], spacing = 0.0125, origin = [-0.0125, -0.0125, 0.06] }}
+        orientation = "random"
+        angular_velocity = [0.6, -0.4, 1.0]
+        [[obstacles]]
+        material = "wall"
+        shape = {{ kind = "box", size = [0.1, 0.1, 0.01] }}
+        position = [0.0, 0.0, -0.005]
+        "#,
+        common::grains_and_walls(2.5e-4, 0.3, 0.3)
+    );
+    let scene =
+        Scene::parse(&text, "falling.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let steps = 2_600;
+    let (counts, states, _) = run(&scene, 0.0, steps);
+    let landed = counts
+        .iter()
+        .position(|c| c[1] > 0)
+        .expect("the grains land");
+    // The lowest grains start 5.5 cm above the floor: 0.1 s of fall.
+    assert!(landed > 1_500, "landed at step {landed}");
+    let mut sim = {
+        let mut s = scene.clone();
+        s.effects.set(ContactParams {
+            skin: 1e-3,
+            culling: Culling::default(),
+        });
+        Simulation::new(&s)
+    };
+    let mut broad = Vec::new();
+    for step in 0..steps {
+        sim.step();
+        broad.push(sim.totals.detection.broad_phases);
+        assert_eq!(
+            sim.last_stats().detection.contacts,
+            counts[step][1],
+            "step {step}: contacts"
+        );
+        assert!(
+            common::motion_bits(&sim.world) == states[step],
+            "step {step}: states differ"
+        );
+    }
+    // The start's list holds the first half of the fall; by the landing,
+    // a few more are drawn.
+    assert_eq!(
+        broad[landed / 2],
+        0,
+        "lists drawn in the first half of the fall"
+    );
+    assert!(
+        broad[landed] < 20,
+        "{} lists drawn by the landing",
+        broad[landed]
+    );
+    assert!(
+        broad[steps - 1] > broad[landed],
+        "no list drawn after landing"
+    );
+}
+
+/// A rod spinning in place sweeps its ends into its neighbour: no centre
+/// moves, so the list is drawn anew for the turn alone, and the contact is
+/// found when the reference finds it.
+#[test]
+fn a_turn_alone_redraws_the_list() {
+    let text = format!(
+        r#"
+        [simulation]
+        dt = 5e-5
+        end_time = 1.0
+        [effects]
+        contact = {{ skin = 1e-3 }}
+        friction = {{}}
+        rotation = {{}}
+        {}
+        [[particles]]
+        material = "grain"
+        shape = {{ kind = "box", size = [0.04, 0.004, 0.004] }}
+        placement = {{ kind = "single", position = [0.0, 0.0, 0.0] }}
+        angular_velocity = [0.0, 0.0, 50.0]
+        [[particles]]
+        material = "grain"
+        shape = {{ kind = "box", size = [0.04, 0.004, 0.004] }}
+        placement = {{ kind = "single", position = [0.0, 0.012, 0.0] }}
+        "#,
+        common::grains_and_walls(2.5e-4, 0.3, 0.3)
+    );
+    let scene = Scene::parse(&text, "rods.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let steps = 400;
+    let (reference, states, _) = run(&scene, 0.0, steps);
+    let touch = reference
+        .iter()
+        .position(|c| c[1] > 0)
+        .expect("the rods touch");
+    // A quarter turn at most before they touch (0.03 s at 50 rad/s).
+    assert!(touch > 50 && touch < 300, "touch at step {touch}");
+    let (listed, listed_states, broad) = run(&scene, 1e-3, steps);
+    assert!(broad > 2, "{broad} lists drawn");
+    for step in 0..steps {
+        assert_eq!(listed[step][1], reference[step][1], "step {step}: contacts");
+        assert!(listed_states[step] == states[step], "step {step}: states");
+    }
+}

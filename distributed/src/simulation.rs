@@ -57,7 +57,7 @@ use crate::metrics::StepMetrics;
 use crate::records::{BodyRecord, ContactRecord, Motion, StateRecord, TermKey, TermRecord};
 use dem::body::Body;
 use dem::checkpoint::{BodyState, Checkpoint, CheckpointError, CheckpointShare, EffectState};
-use dem::contact::{Bounds, Contact, Detector, Role, Share};
+use dem::contact::{Bounds, Contact, Detector, ListMotion, Role, Share};
 use dem::distance::Options;
 use dem::effects::{
     book_entries, insert_due, insertion_due, Agree, Candidate, ContactParams, Effect, ForceTerm,
@@ -90,6 +90,12 @@ pub const CHECK_EVERY: u64 = 20;
 /// neighbour list, which is redrawn alone in between from the ghosts'
 /// current motions.
 pub const GHOST_SKINS: f64 = 3.0;
+
+/// The numbers of a step's one all-reduce (a maximum over the ranks): the
+/// largest travel, the stop, non-finite, deep-contact and insertion flags,
+/// the busy seconds of the step before, the largest centre travel, and the
+/// terms of the neighbour list's validity ([`ListMotion`]).
+const FLAGS: usize = 7 + ListMotion::LEN;
 
 /// What a step draws anew before its detection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -404,7 +410,8 @@ impl<'c> DistributedSimulation<'c> {
         let h = self.dt;
         let end = (self.local.world.time + h, self.local.world.step + 1);
         let due = insertion_due(&self.local.world, &self.ctx, &self.effects, end.0, end.1);
-        let flags = [
+        let motion = self.list_motion();
+        let head = [
             moved,
             f64::from(u8::from(stop)),
             f64::from(u8::from(!finite)),
@@ -413,9 +420,13 @@ impl<'c> DistributedSimulation<'c> {
             previous_busy,
             shifted,
         ];
-        let mut global = [0.0; 7];
+        let mut flags = [0.0; FLAGS];
+        flags[..head.len()].copy_from_slice(&head);
+        flags[head.len()..].copy_from_slice(&motion.0);
+        let mut global = [0.0; FLAGS];
         self.comm
             .all_reduce_into(&flags[..], &mut global[..], SystemOperation::max());
+        let motion = ListMotion(std::array::from_fn(|k| global[FLAGS - ListMotion::LEN + k]));
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
         self.metrics.counted_busy_seconds = previous_busy;
         self.metrics.slowest_busy_seconds = global[5];
@@ -447,7 +458,9 @@ impl<'c> DistributedSimulation<'c> {
         let within = |travel: f64, pad: f64| travel <= pad;
         let redraw = if self.lists_stale || !within(self.ghost_travel, self.ghost_pad()) {
             Redraw::Ghosts
-        } else if !within(self.travel, 0.5 * self.settings.skin) {
+        } else if !within(self.travel, 0.5 * self.settings.skin)
+            && !motion.keeps(self.settings.skin)
+        {
             Redraw::List
         } else {
             Redraw::Keep
@@ -538,6 +551,20 @@ impl<'c> DistributedSimulation<'c> {
             }
         }
         (moved, shifted, finite)
+    }
+
+    /// This rank's share of how the bodies moved since the neighbour list
+    /// was drawn: its particles and the driven obstacles it holds (every
+    /// rank holds the fixed ones it pairs with). Unknown once its world has
+    /// been laid out anew (a migration), which draws the lists anew anyway.
+    fn list_motion(&self) -> ListMotion {
+        if self.lists_stale {
+            return ListMotion::UNKNOWN;
+        }
+        let (world, ctx) = (&self.local.world, &self.ctx);
+        let driven = (0..world.bodies.len()).filter(|&i| world.bodies[i].drive.is_some());
+        let ids = ctx.bodies.iter().copied().chain(driven);
+        self.detector.list_motion(world, ids)
     }
 
     /// How far a body may move before the ghost lists are drawn anew: the

@@ -17,8 +17,10 @@
 //! 1. Broad phase: sort and sweep over the bodies' boxes inflated by their halos
 //!    (`broad_phase.rs`). With a skin ([`Detector::with_skin`]), on one node,
 //!    the moving boxes are inflated by half the skin more and the pairs kept
-//!    as a neighbour list, rebuilt only once some body may have moved farther
-//!    than half the skin since; meanwhile each step's tasks fill the listed
+//!    as a neighbour list, rebuilt only once two moving bodies may have
+//!    moved a skin relative to one another, or a particle as far as its
+//!    clearance from a fixed obstacle (`since_list.rs`); meanwhile each
+//!    step's tasks fill the listed
 //!    bodies and keep the pairs whose current boxes overlap, so the pairs
 //!    examined are exactly those the broad phase would have returned.
 //! 2. Triangle culling: a listed pair whose hulls were shown apart with a
@@ -53,11 +55,13 @@ mod bounds;
 mod broad_phase;
 pub mod features;
 mod separation;
+mod since_list;
 mod sweep;
 mod triangle_set;
 
 pub use bounds::Bounds;
 pub use features::{Contact, FeatureKey, FeatureKind, WeightGradient};
+pub use since_list::ListMotion;
 pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 use triangle_set::{Part, PassPairs, PassSet};
 
@@ -69,6 +73,7 @@ use crate::world::World;
 use features::{append_feature_contacts, FeatureScratch};
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
+use since_list::ListPoses;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -248,8 +253,12 @@ pub struct Detector {
     /// Whether `lists` hold a neighbour list that may be kept (the third
     /// list: pairs other ranks examine, see [`Detector::theirs`]).
     listed: bool,
-    /// How far any point of any body may have moved since the list was built.
+    /// How far any point of any body may have moved since the list was
+    /// built: the sum of each pass's largest travel.
     travel: f64,
+    /// The bodies' poses when the list was built: once `travel` exceeds
+    /// half the skin, whether the list still holds is measured from them.
+    since: ListPoses,
     /// Per shape of the world: the largest distance of a vertex from the
     /// body's centre, which bounds how far a turn moves any point.
     radii: Vec<f64>,
@@ -376,8 +385,11 @@ impl Detector {
 
     /// Like [`Self::detect`], told `moved`: a bound on how far any point of any
     /// body has moved since the previous pass (`None`: unknown). With a skin,
-    /// the broad phase is skipped while these bounds add up to at most half
-    /// the skin since it last ran; results are the same as without a skin.
+    /// the broad phase is skipped while the list it last drew holds every
+    /// pair that can touch: while these bounds add up to at most half the
+    /// skin, and after that while the bodies' motion since, measured from
+    /// their poses then, keeps the skin ([`ListMotion`]). Results are the
+    /// same as without a skin.
     /// `halos` must not change between passes that keep the list (they are
     /// read when it is built).
     pub fn detect_moved(
@@ -391,18 +403,36 @@ impl Detector {
     ) -> DetectionStats {
         self.travel += moved.unwrap_or(f64::INFINITY);
         // NaN travel (a body's state gone bad) rebuilds too.
-        let keep = self.skin > 0.0 && self.travel <= 0.5 * self.skin;
+        let keep = self.skin > 0.0
+            && self.travel.is_finite()
+            && (self.travel <= 0.5 * self.skin
+                || self
+                    .list_motion(world, 0..world.bodies.len())
+                    .keeps(self.skin));
         let mut stats = self.prepare(world, halos, &[], keep);
         contacts.clear();
         stats += self.detect_share(world, features, halos, opts, Share::Local, None, contacts);
         stats
     }
 
+    /// How the bodies `ids` of `world` (laid out as when the neighbour list
+    /// was built) moved since, in the terms of the list's validity
+    /// ([`ListMotion`]): merged over every body a rank moves, and kept while
+    /// they [`ListMotion::keeps`] the skin. Unknown without a list.
+    pub fn list_motion(&self, world: &World, ids: impl Iterator<Item = usize>) -> ListMotion {
+        match self.listed {
+            true => self.since.motion(&world.bodies, ids),
+            false => ListMotion::UNKNOWN,
+        }
+    }
+
     /// Starts a detection whose pairs are then examined by
     /// [`Self::detect_share`]: moves the triangle sets with the bodies, and
     /// runs the broad phase unless `keep_list` and a neighbour list is held
-    /// (the caller then knows that no body moved farther than half the skin
-    /// since it was built). Returns the counts of the broad phase.
+    /// (the caller then knows that it still holds: no body moved farther
+    /// than half the skin since it was built, or the bodies'
+    /// [`Self::list_motion`] keeps the skin). Returns the counts of the
+    /// broad phase.
     ///
     /// `roles` (empty on one node) splits the pairs of a rank's world, whose
     /// bodies are in the order of their ids: a pair is examined on the rank
@@ -448,6 +478,9 @@ impl Detector {
             let views: Vec<PassSet> = sets.iter_mut().map(PassSet::new).collect();
             let pairs = broad_phase(&mut self.broad, world, &views, 0.5 * self.skin);
             split_pairs(pairs, views[0].groups(), roles, &mut self.lists);
+            if self.skin > 0.0 {
+                (self.since).record(world, views[0].groups(), 0.5 * self.skin);
+            }
             // Without a skin the detection keeps no memory from step to
             // step: it is the reference the list is checked against.
             carry_memos(
