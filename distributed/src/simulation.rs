@@ -169,6 +169,8 @@ pub struct DistributedSimulation<'c> {
     /// and since the ghost lists were.
     travel: f64,
     ghost_travel: f64,
+    /// The largest travel of the step before (every rank's).
+    last_moved: f64,
     steps_run: u64,
     /// Steps in a row, up to the one before the last, in which some rank
     /// found a contact deeper than the halos.
@@ -283,6 +285,7 @@ impl<'c> DistributedSimulation<'c> {
             lists_stale: true,
             travel: 0.0,
             ghost_travel: 0.0,
+            last_moved: 0.0,
             steps_run: 0,
             deep_steps: 0,
             metrics: StepMetrics::default(),
@@ -405,12 +408,12 @@ impl<'c> DistributedSimulation<'c> {
         }
         let start = Instant::now();
         let (moved, shifted, finite) = self.kick_and_drift();
+        let motion = self.list_motion();
         self.metrics.integration_seconds += start.elapsed().as_secs_f64();
         let start = Instant::now();
         let h = self.dt;
         let end = (self.local.world.time + h, self.local.world.step + 1);
         let due = insertion_due(&self.local.world, &self.ctx, &self.effects, end.0, end.1);
-        let motion = self.list_motion();
         let head = [
             moved,
             f64::from(u8::from(stop)),
@@ -454,6 +457,7 @@ impl<'c> DistributedSimulation<'c> {
         }
         // NaN travel (a body's state gone bad) redraws too.
         self.travel += global[0];
+        self.last_moved = global[0];
         self.ghost_travel += global[6];
         let within = |travel: f64, pad: f64| travel <= pad;
         let redraw = if self.lists_stale || !within(self.ghost_travel, self.ghost_pad()) {
@@ -557,12 +561,21 @@ impl<'c> DistributedSimulation<'c> {
     /// was drawn: its particles and the driven obstacles it holds (every
     /// rank holds the fixed ones it pairs with). Unknown once its world has
     /// been laid out anew (a migration), which draws the lists anew anyway.
+    ///
+    /// Measured only once the list may be about to outlive half the skin:
+    /// while the travel so far and twice the step before's are within it
+    /// (every rank decides alike, on the all-reduce's numbers), the step's
+    /// own travel almost surely keeps the list without it. Should the
+    /// step travel farther, the unknown motion redraws the list: never a
+    /// wrong list, at worst one redrawn early.
     fn list_motion(&self) -> ListMotion {
-        if self.lists_stale {
+        let soon = self.travel + 2.0 * self.last_moved > 0.5 * self.settings.skin;
+        if self.lists_stale || !soon {
             return ListMotion::UNKNOWN;
         }
         let (world, ctx) = (&self.local.world, &self.ctx);
-        let driven = (0..world.bodies.len()).filter(|&i| world.bodies[i].drive.is_some());
+        let held = |o: &(u32, Body, Bounds)| o.1.drive.as_ref().and(self.local.index_of(o.0));
+        let driven = self.obstacles.iter().filter_map(held);
         let ids = ctx.bodies.iter().copied().chain(driven);
         self.detector.list_motion(world, ids)
     }
