@@ -421,7 +421,7 @@ impl Detector {
     /// they [`ListMotion::keeps`] the skin. Unknown without a list.
     pub fn list_motion(&self, world: &World, ids: impl Iterator<Item = usize>) -> ListMotion {
         match self.listed {
-            true => self.since.motion(&world.bodies, ids),
+            true => self.since.motion(&world.bodies, &self.radii, ids),
             false => ListMotion::UNKNOWN,
         }
     }

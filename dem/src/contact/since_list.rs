@@ -48,8 +48,6 @@ pub(crate) struct ListPoses {
     /// Per particle: its least separation from a fixed obstacle outside its
     /// pairs (infinite: none, and for obstacles).
     clearance: Vec<f64>,
-    /// Per shape: its farthest vertex from the body's centre.
-    radii: Vec<f64>,
 }
 
 impl ListPoses {
@@ -59,7 +57,6 @@ impl ListPoses {
     pub(crate) fn record(&mut self, world: &World, groups: &[BodyGroup], pad: f64) {
         self.poses.clear();
         self.poses.extend(world.bodies.iter().map(|b| (b.x, b.q)));
-        self.radii = world.shape_radii();
         self.clearance.clear();
         self.clearance.resize(world.bodies.len(), f64::INFINITY);
         let fixed: Vec<&BodyGroup> = (groups.iter())
@@ -87,8 +84,14 @@ impl ListPoses {
 
     /// The motion since [`Self::record`] of the bodies `ids` (indices into
     /// the same world, which must be laid out as then), taking part in
-    /// contacts; fixed obstacles are skipped.
-    pub(crate) fn motion(&self, bodies: &[Body], ids: impl Iterator<Item = usize>) -> ListMotion {
+    /// contacts; fixed obstacles are skipped. `radii`: per shape, its
+    /// farthest vertex from the body's centre.
+    pub(crate) fn motion(
+        &self,
+        bodies: &[Body],
+        radii: &[f64],
+        ids: impl Iterator<Item = usize>,
+    ) -> ListMotion {
         let mut m = ListMotion::NONE;
         for i in ids {
             let b = &bodies[i];
@@ -98,7 +101,7 @@ impl ListPoses {
             let Some(&(x, q)) = self.poses.get(i) else {
                 return ListMotion::UNKNOWN;
             };
-            let r = self.radii.get(b.shape).copied().unwrap_or(f64::INFINITY);
+            let r = radii.get(b.shape).copied().unwrap_or(f64::INFINITY);
             let shift = b.x - x;
             let turn = 2.0 * r * (b.q * q.conjugate()).xyz().length();
             // The margins of `integrate::travel_bound`: rounding of the
