@@ -26,25 +26,7 @@ use glam::{DQuat, DVec3};
 /// (Euler's equations for a torque-free body), so each round of the
 /// fixed point, which contracts by about |ω| h / 2, starts two orders in.
 pub fn advance_orientation(b: &Body, h: f64) -> DQuat {
-    let inv = b.inv_inertia_body;
-    let lb = b.q.conjugate() * b.l;
-    let w = inv * lb;
-    if w == DVec3::ZERO {
-        return b.q.normalize();
-    }
-    let mut mid = w + (0.5 * h) * (inv * lb.cross(w));
-    for _ in 0..MIDPOINT_ROUNDS {
-        let e = exp_map(mid * (0.5 * h));
-        let next = e * (inv * (e.conjugate() * lb));
-        let change = (next - mid).length_squared();
-        mid = next;
-        // The round contracts the error by about |ω| h / 2, so what is
-        // left after it is about |Δω| h / 2 relative: at rounding, stop.
-        if change * (h * h) <= CONVERGED * CONVERGED {
-            break;
-        }
-    }
-    (b.q * exp_map(mid * h)).normalize()
+    advance_orientations([b], h)[0]
 }
 
 /// Bodies whose orientation updates [`drift_many`] interleaves: the rounds
@@ -89,6 +71,8 @@ pub fn advance_orientations<const N: usize>(bodies: [&Body; N], h: f64) -> [DQua
             let change = (next - mid[k]).length_squared();
             // Selected, not branched on: the lanes' chains stay in flight.
             mid[k] = if done[k] { mid[k] } else { next };
+            // The round contracts the error by about |ω| h / 2, so what is
+            // left after it is about |Δω| h / 2 relative: at rounding, stop.
             done[k] |= change * (h * h) <= CONVERGED * CONVERGED;
         }
     }
