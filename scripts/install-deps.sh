@@ -14,6 +14,7 @@ packages=(
   cmake                   # the metis crate builds its vendored METIS with cmake
   python3-numpy           # the validation scripts' fits (scripts/validate-*.sh)
   python3-h5py            # and their reading of run.h5
+  valgrind                # scripts/work-overhead.sh counts instructions with callgrind
 )
 for flag in "$@"; do
   case "$flag" in

@@ -156,9 +156,9 @@ mod tests {
         let places = places_in_pairs(&contacts);
         assert_eq!(places, vec![0, 0, 1]);
         let mut terms: Vec<_> = logged
-            .take_log()
-            .into_iter()
-            .map(|t| (t.body as usize, key(&t, &world, &contacts, &places), t))
+            .log()
+            .iter()
+            .map(|&t| (t.body as usize, key(&t, &world, &contacts, &places), t))
             .collect();
         assert_eq!(terms.len(), 8, "every term of body 1 logged");
         // As if the contact terms had come from another rank, reversed.

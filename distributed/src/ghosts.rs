@@ -240,10 +240,40 @@ dem::named_enum!(
     [(Blocking, "blocking"), (Nonblocking, "nonblocking")]
 );
 
-/// What [`exchange_motions`] received, and how long it waited.
+/// The motions' message buffers, kept from step to step: each exchange
+/// packs and receives into the allocations of the one before (a step's
+/// messages are the same sizes while the lists last), rather than
+/// allocating and zeroing them anew.
+#[derive(Debug, Default)]
+pub struct Mailboxes {
+    outbox: Vec<Vec<Motion>>,
+    inbox: Vec<Vec<Motion>>,
+}
+
+impl Mailboxes {
+    /// Per neighbour of `GhostLists::recv`, the motions of its ghosts, in
+    /// order, as the last [`exchange_motions`] received them.
+    pub fn received(&self) -> &[Vec<Motion>] {
+        &self.inbox
+    }
+
+    /// The motions of the bodies `lists` sends, packed, and room for those
+    /// it receives.
+    fn pack(&mut self, lists: &GhostLists, world: &World) {
+        self.outbox.resize_with(lists.send.len(), Vec::new);
+        for (b, (_, ids)) in self.outbox.iter_mut().zip(&lists.send) {
+            b.clear();
+            b.extend(ids.iter().map(|&i| Motion::of(&world.bodies[i])));
+        }
+        self.inbox.resize_with(lists.recv.len(), Vec::new);
+        for (b, (_, ids)) in self.inbox.iter_mut().zip(&lists.recv) {
+            b.resize(ids.len(), Motion::default());
+        }
+    }
+}
+
+/// What [`exchange_motions`] did besides receiving, and how long it waited.
 pub struct Received<R> {
-    /// Per neighbour of `GhostLists::recv`, the motions of its ghosts, in order.
-    pub motions: Vec<Vec<Motion>>,
     pub work: R,
     /// Seconds inside the call that completes the exchange: the same
     /// measure in both modes (after the work when nonblocking, before it
@@ -254,7 +284,7 @@ pub struct Received<R> {
 }
 
 /// Sends the motions of the listed bodies to their ranks and receives the
-/// ghosts', running `work` meanwhile (nonblocking) or after (blocking).
+/// ghosts' into `mail`, running `work` meanwhile (nonblocking) or after (blocking).
 /// `work` is handed a `progress` to call between pieces of its work: it
 /// tests the posted requests, so that messages past the eager limit move
 /// during the work and not only inside the final wait, and answers whether
@@ -266,20 +296,13 @@ pub fn exchange_motions<R>(
     comm: &SimpleCommunicator,
     lists: &GhostLists,
     world: &World,
+    mail: &mut Mailboxes,
     mode: Exchange,
     work: impl FnOnce(&mut dyn FnMut() -> bool) -> R,
 ) -> Received<R> {
     let start = Instant::now();
-    let outbox: Vec<Vec<Motion>> = lists
-        .send
-        .iter()
-        .map(|(_, ids)| ids.iter().map(|&i| Motion::of(&world.bodies[i])).collect())
-        .collect();
-    let mut inbox: Vec<Vec<Motion>> = lists
-        .recv
-        .iter()
-        .map(|(_, ids)| vec![Motion::default(); ids.len()])
-        .collect();
+    mail.pack(lists, world);
+    let Mailboxes { outbox, inbox } = mail;
     let mut wait = 0.0;
     let mut post = 0.0;
     let out = mpi::request::scope(|scope| {
@@ -328,7 +351,6 @@ pub fn exchange_motions<R>(
         out
     });
     Received {
-        motions: inbox,
         work: out,
         wait,
         post,

@@ -50,7 +50,7 @@
 //! failed: runs with it agree across rank counts to rounding, not to the bit.)
 
 use crate::forces::{arrived, key, places_in_pairs, sum_logged};
-use crate::ghosts::{self, exchange_motions, return_terms, Exchange, GhostLists};
+use crate::ghosts::{self, exchange_motions, return_terms, Exchange, GhostLists, Mailboxes};
 use crate::history;
 use crate::local::{Entry, Local};
 use crate::metrics::StepMetrics;
@@ -89,7 +89,7 @@ pub const CHECK_EVERY: u64 = 20;
 /// rebuilds the rank's world, so they are drawn with a wider pad than the
 /// neighbour list, which is redrawn alone in between from the ghosts'
 /// current motions.
-pub const GHOST_SKINS: f64 = 3.0;
+pub const GHOST_SKINS: f64 = 6.0;
 
 /// The numbers of a step's one all-reduce (a maximum over the ranks): the
 /// largest travel, the stop, non-finite, deep-contact and insertion flags,
@@ -159,6 +159,7 @@ pub struct DistributedSimulation<'c> {
     forces: Forces,
     ctx: StepContext,
     lists: GhostLists,
+    mail: Mailboxes,
     /// Per body: whether its force terms are logged (ghosts, and owned
     /// bodies that are ghosts elsewhere).
     logged: Vec<bool>,
@@ -280,6 +281,7 @@ impl<'c> DistributedSimulation<'c> {
                 ..StepContext::default()
             },
             lists: GhostLists::default(),
+            mail: Mailboxes::default(),
             logged: Vec::new(),
             term_peers: Default::default(),
             lists_stale: true,
@@ -630,10 +632,11 @@ impl<'c> DistributedSimulation<'c> {
             self.comm,
             lists,
             &self.local.world,
+            &mut self.mail,
             Exchange::Blocking,
             none,
         );
-        put_motions(&mut self.local.world, &lists.recv, &received.motions);
+        put_motions(&mut self.local.world, &lists.recv, self.mail.received());
         self.metrics.wait_seconds += received.wait;
         self.metrics.post_seconds += (start.elapsed().as_secs_f64() - received.wait).max(0.0);
     }
@@ -664,7 +667,8 @@ impl<'c> DistributedSimulation<'c> {
         let none = GhostLists::default();
         let lists = if keep { &self.lists } else { &none };
         let work_start = Instant::now();
-        let received = exchange_motions(self.comm, lists, &local.world, mode, |progress| {
+        let mail = &mut self.mail;
+        let received = exchange_motions(self.comm, lists, &local.world, mail, mode, |progress| {
             let t = Instant::now();
             let s = detector.detect_share(
                 &local.world,
@@ -687,7 +691,7 @@ impl<'c> DistributedSimulation<'c> {
         let around = work_start.elapsed().as_secs_f64() - local_secs - received.wait;
         m.post_seconds += around.max(0.0);
         let start = Instant::now();
-        put_motions(&mut self.local.world, &lists.recv, &received.motions);
+        put_motions(&mut self.local.world, &lists.recv, self.mail.received());
         let (sent, got) = (self.lists.sent() as u64, self.lists.received() as u64);
         let bytes = std::mem::size_of::<Motion>() as u64;
         m.ghosts_sent = sent;
@@ -725,14 +729,14 @@ impl<'c> DistributedSimulation<'c> {
     /// half kick, of the bodies whose force is known first while the terms
     /// travel.
     fn return_forces(&mut self, kick: bool) {
-        let log = self.forces.take_log();
+        let log = self.forces.log();
         let places = places_in_pairs(&self.ctx.contacts);
         let world = &self.local.world;
         let (to, from) = &self.term_peers;
         let mut outgoing: Vec<(i32, Vec<TermRecord>)> =
             to.iter().map(|&r| (r, Vec::new())).collect();
-        let mut mine: Vec<(usize, TermKey, ForceTerm)> = Vec::new();
-        for t in log {
+        let mut mine: Vec<(usize, TermKey, ForceTerm)> = Vec::with_capacity(log.len());
+        for &t in log {
             let i = t.body as usize;
             let k = key(&t, world, &self.ctx.contacts, &places);
             match self.local.roles[i] {

@@ -312,39 +312,42 @@ fn penalty_share<const N: usize, P: PairSource + ?Sized>(
 /// recomputing at the end read every failed pair back from memory (with
 /// 200,000 random pairs, each of the 6% failed pairs then cost two to three
 /// times a brute-force pair; see docs/distance.md).
+///
+/// The queue takes its room when a pair first fails: a share with none (a
+/// piece of a rank's detection is often a few body pairs) sets up nothing.
 struct FailedPairs {
     isa: Supported,
     /// Indices into the pairs of the waiting pairs, and copies of them.
-    index: [usize; FAILED_QUEUE],
-    buf: [(Triangle, Triangle); FAILED_QUEUE],
-    len: usize,
+    index: Vec<usize>,
+    buf: Vec<(Triangle, Triangle)>,
 }
 
 impl FailedPairs {
     fn new(isa: Supported) -> Self {
-        let zero = [glam::DVec3::ZERO; 3];
         FailedPairs {
             isa,
-            index: [0; FAILED_QUEUE],
-            buf: [(zero, zero); FAILED_QUEUE],
-            len: 0,
+            index: Vec::new(),
+            buf: Vec::new(),
         }
     }
 
     /// Queues pair `k`; runs the brute force when the queue is full.
     fn push<P: PairSource + ?Sized>(&mut self, pairs: &P, k: usize, out: &mut [Closest]) {
         let (a, b) = pairs.pair(k);
-        self.index[self.len] = k;
-        self.buf[self.len] = (*a, *b);
-        self.len += 1;
-        if self.len == FAILED_QUEUE {
+        if self.buf.capacity() == 0 {
+            self.index.reserve_exact(FAILED_QUEUE);
+            self.buf.reserve_exact(FAILED_QUEUE);
+        }
+        self.index.push(k);
+        self.buf.push((*a, *b));
+        if self.buf.len() == FAILED_QUEUE {
             self.flush(out);
         }
     }
 
     /// Runs the brute force on the waiting pairs and writes their answers.
     fn flush(&mut self, out: &mut [Closest]) {
-        let n = self.len;
+        let n = self.buf.len();
         if n == 0 {
             return;
         }
@@ -356,7 +359,8 @@ impl FailedPairs {
                 out[k] = *x;
             }
         }
-        self.len = 0;
+        self.index.clear();
+        self.buf.clear();
     }
 }
 

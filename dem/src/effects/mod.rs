@@ -181,9 +181,10 @@ impl Forces {
         self.torque[i] = torque;
     }
 
-    /// The logged terms, taken out.
-    pub fn take_log(&mut self) -> Vec<ForceTerm> {
-        std::mem::take(&mut self.log)
+    /// The terms logged since the last [`Forces::reset`] (which empties the
+    /// log and keeps its room for the next evaluation).
+    pub fn log(&self) -> &[ForceTerm] {
+        &self.log
     }
 
     /// Sums a logged body's terms, given in the order one process adds them,
