@@ -108,6 +108,17 @@ RCB (docs/distributed.md)." \
 } >> "$page"
 echo "Ranks or threads: done" >&2
 {
+  echo "### The work the ranks add"
+  echo
+  echo "Instructions executed in the steps by $cores ranks, summed, against one process's: the"
+  echo "distributed step's own work (ghosts, lists, force terms), counted and not timed, so free"
+  echo "of the machine's noise; MPI's libraries apart (docs/distributed.md, \"The work the ranks add\")."
+  echo
+  scripts/work-overhead.sh "$cores"
+  echo
+} >> "$page"
+echo "Work the ranks add: done" >&2
+{
   echo "### Weights"
   echo
   echo "The \`pairs\` weight's cost model, fitted to each rank's busy time interval by interval on two"

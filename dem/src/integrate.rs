@@ -14,7 +14,7 @@
 
 use crate::body::Body;
 use crate::exp_map::exp_map;
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 
 /// Midpoint-rule orientation update over `h` with constant `l`.
 ///
@@ -26,7 +26,13 @@ use glam::{DQuat, DVec3};
 /// (Euler's equations for a torque-free body), so each round of the
 /// fixed point, which contracts by about |ω| h / 2, starts two orders in.
 pub fn advance_orientation(b: &Body, h: f64) -> DQuat {
-    advance_orientations([b], h)[0]
+    match Turning::start(b, h) {
+        Err(q) => q,
+        Ok(mut t) => {
+            while !t.round(h) {}
+            t.end(h)
+        }
+    }
 }
 
 /// Bodies whose orientation updates [`drift_many`] interleaves: the rounds
@@ -35,58 +41,80 @@ pub fn advance_orientation(b: &Body, h: f64) -> DQuat {
 /// latencies; several independent ones fill the gaps.
 pub const LANES: usize = 4;
 
-/// [`advance_orientation`] of `N` bodies at once, round by round across
-/// them: for each body the same operations in the same order, so the same
-/// bits. A body that has converged keeps its midpoint while the others go
-/// on (its later rounds are computed and thrown away), and the rounds end
-/// when every body's have. A static body keeps its orientation.
-pub fn advance_orientations<const N: usize>(bodies: [&Body; N], h: f64) -> [DQuat; N] {
-    let mut out = bodies.map(|b| b.q);
-    let mut lb = [DVec3::ZERO; N];
-    let mut mid = [DVec3::ZERO; N];
-    let mut done = [true; N];
-    for (k, b) in bodies.iter().enumerate() {
+/// One body's midpoint rounds under way (see [`advance_orientation`]).
+#[derive(Clone, Copy)]
+struct Turning {
+    q: DQuat,
+    inv: DMat3,
+    /// L in the body axes of q, and the midpoint angular velocity so far.
+    lb: DVec3,
+    mid: DVec3,
+    rounds: usize,
+}
+
+impl Turning {
+    /// What an idle lane holds: no turn.
+    const IDLE: Turning = Turning {
+        q: DQuat::IDENTITY,
+        inv: DMat3::ZERO,
+        lb: DVec3::ZERO,
+        mid: DVec3::ZERO,
+        rounds: 0,
+    };
+
+    /// The rounds' start; `Err` with the new orientation for a body that
+    /// needs none (static, or not turning).
+    #[inline]
+    fn start(b: &Body, h: f64) -> Result<Turning, DQuat> {
         if b.is_static() {
-            continue;
+            return Err(b.q);
+        }
+        // What the lines below give a body at rest, without the rotations:
+        // ω is then zero to the bit.
+        if b.l == DVec3::ZERO {
+            return Err(b.q.normalize());
         }
         let inv = b.inv_inertia_body;
-        lb[k] = b.q.conjugate() * b.l;
-        let w = inv * lb[k];
+        let lb = b.q.conjugate() * b.l;
+        let w = inv * lb;
         if w == DVec3::ZERO {
-            out[k] = b.q.normalize();
-            continue;
+            return Err(b.q.normalize());
         }
-        mid[k] = w + (0.5 * h) * (inv * lb[k].cross(w));
-        done[k] = false;
+        Ok(Turning {
+            q: b.q,
+            inv,
+            lb,
+            mid: w + (0.5 * h) * (inv * lb.cross(w)),
+            rounds: 0,
+        })
     }
-    let turning = done.map(|d| !d);
-    for _ in 0..MIDPOINT_ROUNDS {
-        if done.iter().all(|&d| d) {
-            break;
-        }
-        for k in 0..N {
-            let inv = bodies[k].inv_inertia_body;
-            let e = exp_map(mid[k] * (0.5 * h));
-            let next = e * (inv * (e.conjugate() * lb[k]));
-            let change = (next - mid[k]).length_squared();
-            // Selected, not branched on: the lanes' chains stay in flight.
-            mid[k] = if done[k] { mid[k] } else { next };
-            // The round contracts the error by about |ω| h / 2, so what is
-            // left after it is about |Δω| h / 2 relative: at rounding, stop.
-            done[k] |= change * (h * h) <= CONVERGED * CONVERGED;
-        }
+
+    /// One round of the fixed point; whether the rounds are over.
+    #[inline]
+    fn round(&mut self, h: f64) -> bool {
+        let e = exp_map(self.mid * (0.5 * h));
+        let next = e * (self.inv * (e.conjugate() * self.lb));
+        let change = (next - self.mid).length_squared();
+        self.mid = next;
+        self.rounds += 1;
+        // The round contracts the error by about |ω| h / 2, so what is left
+        // after it is about |Δω| h / 2 relative: at rounding, stop.
+        change * (h * h) <= CONVERGED * CONVERGED || self.rounds == MIDPOINT_ROUNDS
     }
-    for k in 0..N {
-        if turning[k] {
-            out[k] = (bodies[k].q * exp_map(mid[k] * h)).normalize();
-        }
+
+    #[inline]
+    fn end(&self, h: f64) -> DQuat {
+        (self.q * exp_map(self.mid * h)).normalize()
     }
-    out
 }
 
 /// [`drift`] of the bodies `ids` (distinct indices into `bodies`), each to
-/// the bit as `drift` moves it, with the orientations updated [`LANES`] at
-/// a time.
+/// the bit as `drift` moves it: the orientations are updated [`LANES`]
+/// bodies at a time, round by round, each body with the operations of
+/// [`advance_orientation`] in their order. A lane whose body is done takes
+/// the next body that turns, so that no lane runs rounds for a body already
+/// done (bodies need one to [`MIDPOINT_ROUNDS`] rounds, by how fast they
+/// spin), and bodies that do not turn take no lane.
 pub fn drift_many(bodies: &mut [Body], ids: &[usize], h: f64, rotation: bool) {
     for &i in ids {
         let b = &mut bodies[i];
@@ -97,16 +125,41 @@ pub fn drift_many(bodies: &mut [Body], ids: &[usize], h: f64, rotation: bool) {
     if !rotation {
         return;
     }
-    for lane in ids.chunks(LANES) {
-        // A short last chunk repeats its last body in the spare lanes.
-        let at = |k: usize| lane[k.min(lane.len() - 1)];
-        let q: [DQuat; LANES] = advance_orientations(std::array::from_fn(|k| &bodies[at(k)]), h);
-        for (&i, q) in lane.iter().zip(q) {
-            bodies[i].q = q;
+    let mut queue = ids.iter();
+    // The next body that turns; those that do not get their orientation here.
+    let mut next = |bodies: &mut [Body]| {
+        for &i in queue.by_ref() {
+            match Turning::start(&bodies[i], h) {
+                Ok(t) => return Some((i, t)),
+                Err(q) => bodies[i].q = q,
+            }
+        }
+        None
+    };
+    let mut lanes = [(usize::MAX, Turning::IDLE); LANES];
+    let mut busy = [false; LANES];
+    loop {
+        for (lane, busy) in lanes.iter_mut().zip(&mut busy) {
+            if !*busy {
+                if let Some(body) = next(bodies) {
+                    (*lane, *busy) = (body, true);
+                }
+            }
+        }
+        if !busy.contains(&true) {
+            return;
+        }
+        // Every lane's round, then the ends: the chains stay in flight
+        // together (an idle lane's round, at the queue's end, is dropped).
+        let over: [bool; LANES] = std::array::from_fn(|k| lanes[k].1.round(h));
+        for k in 0..LANES {
+            if busy[k] && over[k] {
+                bodies[lanes[k].0].q = lanes[k].1.end(h);
+                busy[k] = false;
+            }
         }
     }
 }
-
 /// Rounds of the midpoint fixed point at most. From the second-order start,
 /// four leave a relative error of about (|ω| h / 2)⁶: about 1e-12 at
 /// |ω| h = 0.02, a rotation of a degree per step.
