@@ -113,7 +113,7 @@ impl Turning {
 /// bodies at a time, round by round, each body with the operations of
 /// [`advance_orientation`] in their order. A lane whose body is done takes
 /// the next body that turns, so that no lane runs rounds for a body already
-/// done (bodies need one to [`MIDPOINT_ROUNDS`] rounds, by how fast they
+/// done (bodies need one to four rounds, by how fast they
 /// spin), and bodies that do not turn take no lane.
 pub fn drift_many(bodies: &mut [Body], ids: &[usize], h: f64, rotation: bool) {
     for &i in ids {
