@@ -9,7 +9,7 @@
 # per-rank counts give the ranks' imbalance of work, free of the cores'
 # speeds. Instructions are not time (a cache miss costs more than an add):
 # the timed ratios are those of scripts/distributed-table.sh.
-# Callgrind runs the code some 50 times slower, and sees no AVX-512: the
+# Callgrind runs the code some 30 times slower, and sees no AVX-512: the
 # kernels run their AVX2 variants under it.
 # Usage: scripts/work-overhead.sh [RANKS]
 set -euo pipefail
