@@ -133,7 +133,7 @@ pub(crate) struct FeatureScratch {
     facets: [Memo<Facet>; 2],
     /// World positions of the two bodies' vertices, each computed once per
     /// body pair (and so the same bits wherever it is used).
-    vertices: [RefCell<Memo<DVec3>>; 2],
+    vertices: [Placed; 2],
 }
 
 /// Which body a corner belongs to.
@@ -151,13 +151,47 @@ struct Solid<'a> {
     rotation: DMat3,
     mesh: &'a TriMesh,
     features: &'a Features,
-    vertices: &'a RefCell<Memo<DVec3>>,
+    vertices: &'a Placed,
+}
+
+/// Meshes of at most this many vertices (grains) are placed whole when a
+/// body pair starts: a grain's contacts read most of its vertices, and an
+/// array read costs less than the memo's bookkeeping. Larger meshes (an
+/// obstacle met by a small grain) are placed vertex by vertex, as read.
+const PLACED_WHOLE: usize = 64;
+
+/// World positions of one body's vertices for one body pair: all of them,
+/// or those read so far.
+#[derive(Debug, Default)]
+struct Placed {
+    whole: bool,
+    all: Vec<DVec3>,
+    some: RefCell<Memo<DVec3>>,
+}
+
+impl Placed {
+    /// Ready for `body` (with `mesh` and `rotation`, its rotation matrix).
+    fn reset(&mut self, body: &Body, mesh: &TriMesh, rotation: DMat3) {
+        self.whole = mesh.vertices.len() <= PLACED_WHOLE;
+        self.all.clear();
+        if self.whole {
+            let place = |&v: &DVec3| body.x + rotation * v;
+            self.all.extend(mesh.vertices.iter().map(place));
+        } else {
+            self.some.get_mut().reset(mesh.vertices.len());
+        }
+    }
 }
 
 impl Solid<'_> {
+    /// Vertex `v` in the world, `x + R v` either way, so the same bits.
     #[inline]
     fn vertex(&self, v: u32) -> DVec3 {
-        *self.vertices.borrow_mut().get(v, || {
+        let placed = self.vertices;
+        if placed.whole {
+            return placed.all[v as usize];
+        }
+        *placed.some.borrow_mut().get(v, || {
             self.body.x + self.rotation * self.mesh.vertices[v as usize]
         })
     }
@@ -180,20 +214,22 @@ pub(crate) fn append_feature_contacts(
 ) -> u64 {
     let (a, b) = (group[0].a.body as usize, group[0].b.body as usize);
     let mut caches = std::mem::take(&mut scratch.vertices);
-    for (cache, i) in caches.iter_mut().zip([a, b]) {
+    let rotations = [a, b].map(|i| DMat3::from_quat(world.bodies[i].q));
+    for ((cache, i), rotation) in caches.iter_mut().zip([a, b]).zip(rotations) {
         let body = &world.bodies[i];
-        cache
-            .get_mut()
-            .reset(world.shapes[body.shape].vertices.len());
+        cache.reset(body, &world.shapes[body.shape], rotation);
     }
-    let solid = |i: usize, cache| Solid {
+    let solid = |i: usize, cache, rotation| Solid {
         body: &world.bodies[i],
-        rotation: DMat3::from_quat(world.bodies[i].q),
+        rotation,
         mesh: &world.shapes[world.bodies[i].shape],
         features: &features[world.bodies[i].shape],
         vertices: cache,
     };
-    let (sa, sb) = (solid(a, &caches[0]), solid(b, &caches[1]));
+    let (sa, sb) = (
+        solid(a, &caches[0], rotations[0]),
+        solid(b, &caches[1], rotations[1]),
+    );
     let reach = halos[a] + halos[b];
     queries(group, &sa, &sb, reach, scratch);
     scratch.found.clear();
