@@ -10,7 +10,9 @@
 #     copy) is the most any split of the work into CORES ranks can reach;
 #     the busy imbalance of the ranks' totals, and step by step (the slowest
 #     rank's busy time summed over the steps, over the mean rank's: what the
-#     waits for the slowest rank cost, each step);
+#     waits for the slowest rank cost, each step), and the same of the cost
+#     model's work (a count, whatever the cores' speeds: the part of those
+#     waits that the split of the work causes);
 #     silo-1000 twice: its first 1,500 steps (the filling, few contacts, short
 #     steps) and its first 3,000 (into the packed bed);
 #  2. the exchange: the wait with a blocking and a non-blocking exchange on
@@ -51,11 +53,11 @@ at_once() {
 cpu=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 echo "Measured by \`scripts/distributed-table.sh $repeat $cores\` on $cpu ($(nproc) cores), commit $(git rev-parse --short HEAD), $(date -u +%Y-%m-%d); $repeat alternating runs each: median [min, max]."
 echo
-echo "| scene | steps | 1 x 1 (ms/step) | 1 x $cores threads | $cores ranks x 1 | ranks / threads | efficiency | ceiling ($cores copies at once) | efficiency / ceiling | busy imbalance | busy imbalance, step by step | ghosts per rank |"
-echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+echo "| scene | steps | 1 x 1 (ms/step) | 1 x $cores threads | $cores ranks x 1 | ranks / threads | efficiency | ceiling ($cores copies at once) | efficiency / ceiling | busy imbalance | busy imbalance, step by step | work imbalance, step by step | ghosts per rank |"
+echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
 for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo-1000.toml:3000 silo.toml:1000; do
   scene=scenes/${spec%%:*}; steps=${spec##*:}
-  one=(); threads=(); ranks=(); copies=(); imb=(); steps_imb=(); ghosts=()
+  one=(); threads=(); ranks=(); copies=(); imb=(); steps_imb=(); work_imb=(); ghosts=()
   for _ in $(seq "$repeat"); do
     one+=("$($tridem run "$scene" --steps "$steps" --threads 1 --json --quiet 2>/dev/null | json 'j["seconds"]')")
     threads+=("$($tridem run "$scene" --steps "$steps" --threads "$cores" --json --quiet 2>/dev/null | json 'j["seconds"]')")
@@ -63,6 +65,7 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo-1000.
     ranks+=("$(echo "$j" | json 'j["seconds"]')")
     imb+=("$(echo "$j" | json 'j["busy_imbalance"]')")
     steps_imb+=("$(echo "$j" | json 'j["busy_imbalance_per_step"]')")
+    work_imb+=("$(echo "$j" | json 'j["work_imbalance_per_step"]')")
     ghosts+=("$(echo "$j" | json 'j["per_step_over_ranks"]["ghosts_received"]["mean"]')")
     copies+=("$(at_once "$scene" "$steps")")
   done
@@ -74,7 +77,7 @@ for spec in hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500 silo-1000.
     ceilings+=("$(python3 -c "print(${one[$k]}/${copies[$k]})")")
     of+=("$(python3 -c "print(${copies[$k]}/($cores*${ranks[$k]}))")")
   done
-  echo "| ${spec%%:*} | $steps | $(ms "${one[@]}" | spread) | $(ms "${threads[@]}" | spread) | $(ms "${ranks[@]}" | spread) | $(printf '%s\n' "${ratios[@]}" | spread) | $(printf '%s\n' "${effs[@]}" | spread) | $(printf '%s\n' "${ceilings[@]}" | spread) | $(printf '%s\n' "${of[@]}" | spread) | $(printf '%s\n' "${imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${steps_imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${ghosts[@]}" | med | xargs printf '%.0f') |"
+  echo "| ${spec%%:*} | $steps | $(ms "${one[@]}" | spread) | $(ms "${threads[@]}" | spread) | $(ms "${ranks[@]}" | spread) | $(printf '%s\n' "${ratios[@]}" | spread) | $(printf '%s\n' "${effs[@]}" | spread) | $(printf '%s\n' "${ceilings[@]}" | spread) | $(printf '%s\n' "${of[@]}" | spread) | $(printf '%s\n' "${imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${steps_imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${work_imb[@]}" | med | xargs printf '%.3f') | $(printf '%s\n' "${ghosts[@]}" | med | xargs printf '%.0f') |"
 done
 echo
 echo "Exchange on silo-1000 (1,500 steps, $cores ranks): the wait is the time inside the call that completes the ghost exchange, the same measure in both modes."

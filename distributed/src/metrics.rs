@@ -81,6 +81,12 @@ step_metrics! {
         /// What the `pairs` weight's cost model says the step costs here
         /// (ns, `weights::rank_cost`): the work the partitioner balances.
         modelled_work_ns,
+        /// The modelled work of the step before, of this rank and of the
+        /// rank with the most (carried by the step's all-reduce): their sums
+        /// give the imbalance of the work itself step by step
+        /// ([`per_step_work_imbalance`]), which no core's speed moves.
+        counted_work_ns,
+        most_work_ns,
     }
     seconds {
         partition_seconds,
@@ -181,6 +187,22 @@ pub fn per_step_imbalance(ranks: &[StepMetrics]) -> f64 {
     }
 }
 
+/// The modelled work's imbalance step by step: the largest rank's
+/// `modelled_work_ns` summed over the steps, over the mean rank's (1 with
+/// no work). What [`per_step_imbalance`] would be on cores of equal and
+/// steady speed: the part of the waits that the work's split causes,
+/// whatever the machine does.
+pub fn per_step_work_imbalance(ranks: &[StepMetrics]) -> f64 {
+    let n = ranks.len().max(1) as f64;
+    let mean = ranks.iter().map(|m| m.counted_work_ns as f64).sum::<f64>() / n;
+    let most = ranks.first().map_or(0.0, |m| m.most_work_ns as f64);
+    if mean > 0.0 {
+        most / mean
+    } else {
+        1.0
+    }
+}
+
 /// One JSON line of an interval's metrics on all ranks (see
 /// [`StepMetrics::extend_interval`]): per rank, summed, and the imbalances
 /// of owned triangles and busy seconds.
@@ -199,6 +221,7 @@ pub fn json_line(ranks: &[StepMetrics]) -> serde_json::Value {
         "triangle_imbalance": imbalance(ranks.iter().map(|m| m.owned_triangles as f64)),
         "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
         "busy_imbalance_per_step": per_step_imbalance(ranks),
+        "work_imbalance_per_step": per_step_work_imbalance(ranks),
         "sum": sum,
         "per_rank": per_rank,
     })

@@ -93,9 +93,10 @@ pub const GHOST_SKINS: f64 = 6.0;
 
 /// The numbers of a step's one all-reduce (a maximum over the ranks): the
 /// largest travel, the stop, non-finite, deep-contact and insertion flags,
-/// the busy seconds of the step before, the largest centre travel, and the
-/// terms of the neighbour list's validity ([`ListMotion`]).
-const FLAGS: usize = 7 + ListMotion::LEN;
+/// the busy seconds of the step before, the largest centre travel, the
+/// modelled work of the step before, and the terms of the neighbour list's
+/// validity ([`ListMotion`]).
+const FLAGS: usize = 8 + ListMotion::LEN;
 
 /// What a step draws anew before its detection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -390,6 +391,7 @@ impl<'c> DistributedSimulation<'c> {
     pub fn step(&mut self, stop: bool) -> Result<bool, String> {
         let step_start = Instant::now();
         let previous_busy = self.metrics.busy_seconds;
+        let previous_work = self.metrics.modelled_work_ns;
         // The first step carries what the start's partitioning cost.
         let carried = if self.steps_run == 0 {
             self.metrics
@@ -424,6 +426,7 @@ impl<'c> DistributedSimulation<'c> {
             f64::from(u8::from(due)),
             previous_busy,
             shifted,
+            previous_work as f64,
         ];
         let mut flags = [0.0; FLAGS];
         flags[..head.len()].copy_from_slice(&head);
@@ -435,6 +438,8 @@ impl<'c> DistributedSimulation<'c> {
         self.metrics.reduce_seconds += start.elapsed().as_secs_f64();
         self.metrics.counted_busy_seconds = previous_busy;
         self.metrics.slowest_busy_seconds = global[5];
+        self.metrics.counted_work_ns = previous_work;
+        self.metrics.most_work_ns = global[7] as u64;
         if global[2] > 0.0 {
             let at = NonFinite {
                 step: self.local.world.step + 1,

@@ -744,9 +744,17 @@ fn metrics_count_every_rank_and_every_body_once() {
             "{l}"
         );
         assert!(l["busy_imbalance_per_step"].as_f64().unwrap() >= 1.0, "{l}");
+        // So is the largest modelled work, a count.
+        let most = column("most_work_ns");
+        assert!(most.iter().all(|&m| m == most[0]), "{l}");
+        assert!(
+            column("counted_work_ns").iter().all(|&c| c <= most[0]),
+            "{l}"
+        );
+        assert!(l["work_imbalance_per_step"].as_f64().unwrap() >= 1.0, "{l}");
     }
-    // The busy time carried is each step's, one step late: all of it but
-    // the last step's.
+    // The busy time and the work carried are each step's, one step late:
+    // all of it but the last step's.
     let total = |f: &str, r: usize| -> f64 {
         let at = |l: &serde_json::Value| l["per_rank"][f][r].as_f64().unwrap();
         lines.iter().map(at).sum()
@@ -755,6 +763,9 @@ fn metrics_count_every_rank_and_every_body_once() {
     for r in 0..3 {
         let missing = total("busy_seconds", r) - total("counted_busy_seconds", r);
         let last_ten = last["per_rank"]["busy_seconds"][r].as_f64().unwrap();
+        assert!(missing > 0.0 && missing < last_ten, "{missing} {last_ten}");
+        let missing = total("modelled_work_ns", r) - total("counted_work_ns", r);
+        let last_ten = last["per_rank"]["modelled_work_ns"][r].as_f64().unwrap();
         assert!(missing > 0.0 && missing < last_ten, "{missing} {last_ten}");
     }
     // The first step places the bodies dealt out in turn.

@@ -15,7 +15,7 @@ use crate::error::{CliError, CliResult};
 use crate::output::{Layout, Output};
 use dem::checkpoint::CheckpointShare;
 use dem::scene::{Deal, Scene};
-use distributed::metrics::{imbalance, json_line, per_step_imbalance};
+use distributed::metrics::{imbalance, json_line, per_step_imbalance, per_step_work_imbalance};
 use distributed::{DistributedSimulation, Settings, Start, StepMetrics};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -501,6 +501,7 @@ fn summary(
         "triangle_imbalance": imbalance(ranks.iter().map(|m| m.owned_triangles as f64)),
         "busy_imbalance": imbalance(ranks.iter().map(|m| m.busy_seconds)),
         "busy_imbalance_per_step": per_step_imbalance(&ranks),
+        "work_imbalance_per_step": per_step_work_imbalance(&ranks),
         "peak_rss_bytes": min_mean_max(&rss_f),
         "per_step_over_ranks": table,
         "measures": crate::run_summary::measure_map(measures),
@@ -521,10 +522,11 @@ fn summary(
     println!("contacts (sum)         {contacts}");
     println!("deep contacts          {}", stats[0]);
     println!(
-        "imbalance              triangles {:.3}, busy time {:.3} over the run, {:.3} step by step (max/mean)",
+        "imbalance              triangles {:.3}, busy time {:.3} over the run, {:.3} step by step, modelled work {:.3} step by step (max/mean)",
         summary["triangle_imbalance"].as_f64().unwrap_or(1.0),
         summary["busy_imbalance"].as_f64().unwrap_or(1.0),
-        summary["busy_imbalance_per_step"].as_f64().unwrap_or(1.0)
+        summary["busy_imbalance_per_step"].as_f64().unwrap_or(1.0),
+        summary["work_imbalance_per_step"].as_f64().unwrap_or(1.0)
     );
     let mib = |b: f64| b / (1u64 << 20) as f64;
     let max_rss = rss_f.iter().copied().fold(0.0, f64::max);
