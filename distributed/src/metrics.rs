@@ -177,14 +177,7 @@ pub fn imbalance(values: impl Iterator<Item = f64> + Clone) -> f64 {
 /// different slow rank has totals in balance and a per-step imbalance
 /// above 1.
 pub fn per_step_imbalance(ranks: &[StepMetrics]) -> f64 {
-    let n = ranks.len().max(1) as f64;
-    let mean = ranks.iter().map(|m| m.counted_busy_seconds).sum::<f64>() / n;
-    let slowest = ranks.first().map_or(0.0, |m| m.slowest_busy_seconds);
-    if mean > 0.0 {
-        slowest / mean
-    } else {
-        1.0
-    }
+    carried_imbalance(ranks, |m| (m.slowest_busy_seconds, m.counted_busy_seconds))
 }
 
 /// The modelled work's imbalance step by step: the largest rank's
@@ -193,11 +186,18 @@ pub fn per_step_imbalance(ranks: &[StepMetrics]) -> f64 {
 /// steady speed: the part of the waits that the work's split causes,
 /// whatever the machine does.
 pub fn per_step_work_imbalance(ranks: &[StepMetrics]) -> f64 {
+    carried_imbalance(ranks, |m| (m.most_work_ns as f64, m.counted_work_ns as f64))
+}
+
+/// The largest rank's value summed step by step over the mean rank's, from
+/// what the step's all-reduce carried: `carried` gives (the largest rank's
+/// sum, the same on every rank; this rank's sum). 1 when all are zero.
+fn carried_imbalance(ranks: &[StepMetrics], carried: impl Fn(&StepMetrics) -> (f64, f64)) -> f64 {
     let n = ranks.len().max(1) as f64;
-    let mean = ranks.iter().map(|m| m.counted_work_ns as f64).sum::<f64>() / n;
-    let most = ranks.first().map_or(0.0, |m| m.most_work_ns as f64);
+    let mean = ranks.iter().map(|m| carried(m).1).sum::<f64>() / n;
+    let largest = ranks.first().map_or(0.0, |m| carried(m).0);
     if mean > 0.0 {
-        most / mean
+        largest / mean
     } else {
         1.0
     }
