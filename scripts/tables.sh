@@ -60,7 +60,7 @@ echo "Contact culling: done" >&2
   echo "This build against commit 0653782, whose detection tested every triangle pair of"
   echo "two bodies' overlapping boxes, side by side on one thread (docs/dem.md, \"Culling\")."
   echo
-  scripts/compare-builds.sh 0653782 3
+  scripts/compare-builds.sh 0653782 9 hopper.toml:7000 hopper-400.toml:7000 silo-1000.toml:1500
   echo
 } >> "$page"
 echo "Against the earlier build: done" >&2
