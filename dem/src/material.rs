@@ -24,6 +24,13 @@ pub fn damping_ratio(e: f64) -> f64 {
     -l / (std::f64::consts::PI.powi(2) + l * l).sqrt()
 }
 
+/// Two normal springs in series, k_a k_b / (k_a + k_b): the stiffness of
+/// the contact between materials of stiffnesses `ka` and `kb`.
+#[inline]
+pub fn in_series(ka: f64, kb: f64) -> f64 {
+    ka * kb / (ka + kb)
+}
+
 /// The constants of the contact laws between two materials.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairLaw {
@@ -54,7 +61,7 @@ impl MaterialPairs {
                 let (ea, eb) = (a.restitution.unwrap_or(0.0), b.restitution.unwrap_or(0.0));
                 let (ma, mb) = (a.friction.unwrap_or(0.0), b.friction.unwrap_or(0.0));
                 laws.push(PairLaw {
-                    stiffness: ka * kb / (ka + kb),
+                    stiffness: in_series(ka, kb),
                     damping_ratio: damping_ratio(0.5 * (ea + eb)),
                     friction: (ma * mb).sqrt(),
                 });

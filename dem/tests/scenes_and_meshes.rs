@@ -173,7 +173,7 @@ fn missing_scene_file_names_the_file() {
 
 #[test]
 fn open_inconsistent_and_degenerate_meshes_are_refused() {
-    let b = box_mesh(DVec3::ONE);
+    let b = box_mesh(DVec3::ONE).unwrap();
     let mut open = b.triangles.clone();
     open.pop();
     assert!(matches!(
@@ -209,7 +209,7 @@ fn open_inconsistent_and_degenerate_meshes_are_refused() {
 fn obj_and_stl_meshes_load_and_bad_ones_name_the_file() {
     let dir = std::env::temp_dir().join(format!("tridem-mesh-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let b = box_mesh(DVec3::new(1.0, 2.0, 3.0));
+    let b = box_mesh(DVec3::new(1.0, 2.0, 3.0)).unwrap();
     let mut obj = String::new();
     for v in &b.vertices {
         obj.push_str(&format!("v {} {} {}\n", v.x, v.y, v.z));
@@ -234,7 +234,9 @@ fn obj_and_stl_meshes_load_and_bad_ones_name_the_file() {
     // Coordinates are read in double precision: a 1 cm cube 100 km from
     // the origin keeps its size to 1e-10 m (single precision would make it
     // 1.56 cm wide).
-    let far = box_mesh(DVec3::splat(0.01)).translated(DVec3::splat(1e5));
+    let far = box_mesh(DVec3::splat(0.01))
+        .unwrap()
+        .translated(DVec3::splat(1e5));
     let mut obj = String::new();
     for v in &far.vertices {
         obj.push_str(&format!("v {:?} {:?} {:?}\n", v.x, v.y, v.z));
@@ -359,5 +361,101 @@ fn tubes_are_read_and_bad_ones_refused() {
         let e = parse(&tube(bad)).unwrap_err();
         assert!(e.cause.contains(what), "{bad}: {e}");
         assert_eq!(e.line, line, "{bad}: {e}");
+    }
+}
+
+/// Every shape kind at lengths whose triangles' areas underflow f64 (or
+/// whose coordinates, volume or inertia overflow it) is refused at the
+/// particle's or obstacle's table, never a panic; at the sizes a scene may
+/// use, 1e-6 to 1e6 in metres, the same shapes are read.
+#[test]
+fn shapes_beyond_what_f64_carries_are_refused_with_their_line() {
+    let dir = std::env::temp_dir().join(format!("tridem-sizes-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n";
+    std::fs::write(dir.join("tet.obj"), obj).unwrap();
+    let shapes = |l: f64| {
+        [
+            format!("{{ kind = \"hull\", triangles = 20, radius = {l:e}, seed = 1 }}"),
+            format!("{{ kind = \"tetrahedron\", radius = {l:e} }}"),
+            format!("{{ kind = \"box\", size = [{l:e}, {l:e}, {l:e}], subdivide = 1 }}"),
+            format!("{{ kind = \"mesh\", file = \"tet.obj\", scale = {l:e} }}"),
+        ]
+    };
+    // A particle of the shape, its halo a fifth of its size (the halo may
+    // be no more than half its thickness), placed at the origin.
+    let scene = |shape: &str, l: f64| {
+        format!(
+            "[simulation]\ndt = 1e-5\nend_time = 0.1\nallow_unstable_dt = true\n\n\
+             [effects]\ncontact = {{}}\n\n\
+             [[materials]]\nname = \"m\"\ndensity = 1000.0\nstiffness = 1e4\nrestitution = 0.5\nhalo = {:e}\n\n\
+             [[particles]]\nmaterial = \"m\"\nshape = {shape}\nplacement = {{ kind = \"single\", position = [0.0, 0.0, 0.0] }}\n",
+            0.05 * l
+        )
+    };
+    let parse_in = |text: &str| Scene::parse(text, "scene.toml", &dir);
+    for l in [1e-6, 1.0, 1e6] {
+        for shape in shapes(l) {
+            parse_in(&scene(&shape, l)).unwrap_or_else(|e| panic!("{shape}: {e}"));
+        }
+    }
+    for l in [1e-300, 1e-200, 1e-120, 1e-100, 1e100, 1e200, 1e300] {
+        for shape in shapes(l) {
+            let text = scene(&shape, l);
+            let e = std::panic::catch_unwind(|| parse_in(&text))
+                .unwrap_or_else(|_| panic!("{shape} panicked"))
+                .expect_err(&shape);
+            assert_eq!(e.line, 16, "{shape}: {e}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Far from the origin f64 rounds coordinates coarsely: a body placed where
+/// the rounding is a sizeable part of its halo is refused, naming how far
+/// it reaches; the same scene a million sizes out is read.
+#[test]
+fn bodies_placed_where_rounding_swallows_the_halo_are_refused() {
+    let at = |x: f64| {
+        BASE.replace(
+            "position = [0.0, 0.0, 0.0]",
+            &format!("position = [{x:e}, 0.0, 0.0]"),
+        )
+    };
+    for x in [1e4, -1e6] {
+        parse(&at(x)).unwrap_or_else(|e| panic!("{x}: {e}"));
+    }
+    for x in [1e12, -1e15, 1e300] {
+        let e = parse(&at(x)).unwrap_err();
+        assert_eq!(e.line, 17, "{x}: {e}");
+        assert!(e.cause.contains("from the origin"), "{x}: {e}");
+    }
+    let obstacle = |x: f64| {
+        format!(
+            "{BASE}\n[[obstacles]]\nmaterial = \"m\"\nshape = {{ kind = \"box\", size = [1.0, 1.0, 0.1] }}\nposition = [0.0, {x:e}, -1.0]\n"
+        )
+    };
+    parse(&obstacle(1e5)).unwrap();
+    let e = parse(&obstacle(1e13)).unwrap_err();
+    assert_eq!(e.line, 22, "{e}");
+    assert!(e.cause.contains("from the origin"), "{e}");
+}
+
+/// Contact stiffnesses combine as springs in series, k_a k_b / (k_a + k_b):
+/// stiffnesses whose product or sum overflows f64 are refused at the
+/// material, with the two stiffnesses named, rather than giving a contact
+/// law (and a stable step) of no number.
+#[test]
+fn stiffnesses_whose_series_overflows_are_refused() {
+    let with = |k: &str| {
+        BASE.replace("stiffness = 1e4", &format!("stiffness = {k}"))
+            .replace("end_time = 0.1", "end_time = 0.1\nallow_unstable_dt = true")
+    };
+    let s = parse(&with("1e150")).unwrap();
+    assert_eq!(s.world.materials[0].stiffness, Some(1e150));
+    for k in ["1e300", "1.7e308"] {
+        let e = parse(&with(k)).unwrap_err();
+        assert_eq!(e.line, 11, "{k}: {e}");
+        assert!(e.cause.contains("contact stiffness"), "{k}: {e}");
     }
 }

@@ -647,7 +647,7 @@ mod tests {
             s ^= s << 17;
             (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
         };
-        let mesh = crate::mesh::sphere_hull(60, 1.0, 3);
+        let mesh = crate::mesh::sphere_hull(60, 1.0, 3).unwrap();
         assert!(uses_every_vertex(&mesh));
         for scale in [1e-6, 1e-3, 1.0, 1e3, 1e6] {
             for far in [0.0, 1e4, 1e7] {

@@ -372,9 +372,9 @@ mod tests {
 
     #[test]
     fn a_box_has_six_faces_twelve_creases_eight_corners_however_meshed() {
-        let b = box_mesh(DVec3::new(1.0, 2.0, 3.0));
+        let b = box_mesh(DVec3::new(1.0, 2.0, 3.0)).unwrap();
         for times in 0..3 {
-            let m = subdivided(&b, times);
+            let m = subdivided(&b, times).unwrap();
             let f = Features::of(&m);
             assert_eq!(f.faces.len(), 6, "refined {times} times");
             assert_eq!(f.creases.len(), 12);
@@ -402,7 +402,7 @@ mod tests {
 
     #[test]
     fn every_edge_of_a_hull_is_a_convex_crease_and_every_vertex_a_corner() {
-        let m = sphere_hull(20, 0.01, 7);
+        let m = sphere_hull(20, 0.01, 7).unwrap();
         let f = Features::of(&m);
         assert_eq!(f.faces.len(), 20);
         assert_eq!(f.creases.len(), 30);

@@ -1,14 +1,18 @@
 //! Generated shapes: boxes, tetrahedra, tubes (a rotating drum's shell), and
 //! the published granulate: the convex hull of random points on a sphere.
+//!
+//! Each returns the mesh, or the [`MeshError`] its triangles give at the
+//! size asked: lengths so small that a triangle's area underflows, or so
+//! large that a product overflows, make a degenerate or non-finite mesh.
 
-use super::TriMesh;
+use super::{MeshError, TriMesh};
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::collections::HashMap;
 
 /// An axis-aligned box of the given size centred on the origin.
-pub fn box_mesh(size: DVec3) -> TriMesh {
+pub fn box_mesh(size: DVec3) -> Result<TriMesh, MeshError> {
     let h = size * 0.5;
     let v: Vec<DVec3> = (0..8)
         .map(|i| {
@@ -33,12 +37,12 @@ pub fn box_mesh(size: DVec3) -> TriMesh {
         [1, 3, 5],
         [3, 7, 5], // x+
     ];
-    TriMesh::new(v, t).expect("the box mesh is valid")
+    TriMesh::new(v, t)
 }
 
 /// `m` with each triangle split into four at its edges' midpoints, `times`
 /// times over: the same shape, with 4^times as many triangles.
-pub fn subdivided(m: &TriMesh, times: usize) -> TriMesh {
+pub fn subdivided(m: &TriMesh, times: usize) -> Result<TriMesh, MeshError> {
     let mut m = m.clone();
     for _ in 0..times {
         let mut vertices = m.vertices.clone();
@@ -56,13 +60,13 @@ pub fn subdivided(m: &TriMesh, times: usize) -> TriMesh {
             let ca = at(c, a, &mut vertices);
             triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
         }
-        m = TriMesh::new(vertices, triangles).expect("subdividing keeps a mesh valid");
+        m = TriMesh::new(vertices, triangles)?;
     }
-    m
+    Ok(m)
 }
 
 /// A regular tetrahedron with circumradius `r`, centred on the origin.
-pub fn tetrahedron(r: f64) -> TriMesh {
+pub fn tetrahedron(r: f64) -> Result<TriMesh, MeshError> {
     let s = r / 3f64.sqrt();
     let v = vec![
         DVec3::new(s, s, s),
@@ -71,7 +75,6 @@ pub fn tetrahedron(r: f64) -> TriMesh {
         DVec3::new(-s, -s, s),
     ];
     TriMesh::new(v, vec![[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
-        .expect("the tetrahedron is valid")
 }
 
 /// A tube along y centred on the origin: the shell between two coaxial
@@ -90,7 +93,7 @@ pub fn tube(
     thickness: f64,
     length: f64,
     segments: usize,
-) -> TriMesh {
+) -> Result<TriMesh, MeshError> {
     let n = segments.max(3);
     let half = 0.5 * length;
     let (r0, r1) = (inner_radius, end_inner_radius);
@@ -131,12 +134,12 @@ pub fn tube(
             }
         }
     }
-    TriMesh::new(vertices, triangles).expect("the tube mesh is valid")
+    TriMesh::new(vertices, triangles)
 }
 
 /// Convex hull of random points on a sphere of radius `r`, with `triangles`
 /// faces (even, at least 4: a hull of V points in general position has 2V - 4).
-pub fn sphere_hull(triangles: usize, r: f64, seed: u64) -> TriMesh {
+pub fn sphere_hull(triangles: usize, r: f64, seed: u64) -> Result<TriMesh, MeshError> {
     let points = (triangles.max(4) + 4) / 2;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
     for _attempt in 0..64 {
@@ -152,13 +155,16 @@ pub fn sphere_hull(triangles: usize, r: f64, seed: u64) -> TriMesh {
                 parry3d_f64::math::Vector::new(d.x, d.y, d.z)
             })
             .collect();
-        let (v, t) = parry3d_f64::transformation::convex_hull(&pts);
+        // No hull (points parry cannot tell apart at this scale): try anew.
+        let Ok((v, t)) = parry3d_f64::transformation::try_convex_hull(&pts) else {
+            continue;
+        };
         let vertices: Vec<DVec3> = v.iter().map(|p| DVec3::new(p.x, p.y, p.z)).collect();
         if let Ok(mesh) = TriMesh::new(vertices, t) {
             if mesh.triangles.len() == 2 * points - 4 {
                 // Centre the mesh on its centre of mass.
                 let c = super::MassProperties::of(&mesh, 1.0).centroid;
-                return mesh.translated(-c);
+                return Ok(mesh.translated(-c));
             }
         }
     }
@@ -173,7 +179,7 @@ mod tests {
     #[test]
     fn hull_has_the_requested_triangles_and_is_convex() {
         for n in [4, 8, 20, 60] {
-            let m = sphere_hull(n, 0.01, 3);
+            let m = sphere_hull(n, 0.01, 3).unwrap();
             assert_eq!(m.triangles.len(), n);
             // Convex: every vertex on the inner side of every face plane.
             for i in 0..m.triangles.len() {
@@ -199,7 +205,7 @@ mod tests {
             (0.02, 0.06, 0.003, 0.07, 24),
             (3e4, 1e4, 2e3, 5e4, 5),
         ] {
-            let m = tube(r, r1, t, l, n);
+            let m = tube(r, r1, t, l, n).unwrap();
             assert_eq!(m.triangles.len(), 8 * n);
             let sector = 0.5 * n as f64 * (std::f64::consts::TAU / n as f64).sin();
             // ∫ ((r(y) + t)² − r(y)²) dy over the length, r linear in y.

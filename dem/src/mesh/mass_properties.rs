@@ -66,7 +66,7 @@ mod tests {
     fn box_matches_the_analytic_values_far_from_the_origin() {
         let (a, b, c) = (2.0, 3.0, 5.0);
         let offset = DVec3::new(1e6, -2e6, 3e5);
-        let m = box_mesh(DVec3::new(a, b, c)).translated(offset);
+        let m = box_mesh(DVec3::new(a, b, c)).unwrap().translated(offset);
         let p = MassProperties::of(&m, 7.0);
         let mass = 7.0 * a * b * c;
         assert!((p.volume - a * b * c).abs() < 1e-9 * a * b * c);

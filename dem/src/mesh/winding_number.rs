@@ -51,7 +51,8 @@ mod tests {
     fn winding_number_is_one_inside_and_zero_outside_at_every_scale() {
         for scale in [1e-6, 1.0, 1e6] {
             let far = DVec3::new(3e5, -7e5, 1e6) * scale;
-            let m = subdivided(&box_mesh(DVec3::new(2.0, 1.0, 0.5)), 1)
+            let m = subdivided(&box_mesh(DVec3::new(2.0, 1.0, 0.5)).unwrap(), 1)
+                .unwrap()
                 .scaled(scale)
                 .translated(far);
             for (p, inside) in [
@@ -74,7 +75,7 @@ mod tests {
     /// it lies behind every face plane.
     #[test]
     fn contains_agrees_with_the_face_planes_of_a_convex_hull() {
-        let m = sphere_hull(60, 1.0, 7);
+        let m = sphere_hull(60, 1.0, 7).unwrap();
         let rot = DQuat::from_rotation_y(0.3);
         let mut s = 12345_u64;
         let mut next = || {

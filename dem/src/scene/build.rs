@@ -3,7 +3,9 @@
 //! function, in the order a later one needs an earlier one's result.
 
 use super::census::Run;
-use super::shapes::{check_motion, make_shape, placements, random_rotation, smallest_extent};
+use super::shapes::{
+    check_motion, check_resolution, make_shape, placements, random_rotation, smallest_extent,
+};
 use super::spec::PlacementSpec;
 use super::spec::{
     KernelSpec, MaterialSpec, ObstacleSpec, ParticleSpec, SceneFile, SimulationSpec,
@@ -17,7 +19,7 @@ use crate::distance::{Fallback, Method, Options, PenaltyParams, Schedule, Thread
 use crate::effects::{
     ContactParams, Declare, Effects, InsertionParams, Stream, WallMotionParams, KINDS,
 };
-use crate::material::{damping_ratio, Material};
+use crate::material::{damping_ratio, in_series, Material};
 use crate::mesh::{MassProperties, TriMesh};
 use crate::world::World;
 use glam::{DMat3, DQuat, DVec3};
@@ -237,10 +239,34 @@ fn materials(
             halo: m.halo,
             friction: m.friction,
         };
-        check_material_params(&material, effects).or_else(|cause| ctx.err(span, cause))?;
+        check_material_params(&material, effects).or_else(|cause| ctx.err(span.clone(), cause))?;
         materials.push(material);
+        check_pair_laws(&materials).or_else(|cause| ctx.err(span, cause))?;
     }
     Ok(materials)
+}
+
+/// The last of `materials` meets every one (itself included) with a contact
+/// stiffness f64 can carry: springs in series overflow to no number when
+/// their stiffnesses' product or sum does.
+fn check_pair_laws(materials: &[Material]) -> Result<(), String> {
+    let Some((m, others)) = materials.split_last() else {
+        return Ok(());
+    };
+    for o in others.iter().chain([m]) {
+        if let (Some(ka), Some(kb)) = (m.stiffness, o.stiffness) {
+            let k = in_series(ka, kb);
+            if !(k.is_finite() && k > 0.0) {
+                return Err(format!(
+                    "material `{}`: its contact stiffness with `{}`, k_a k_b / (k_a + k_b) \
+                     with k_a = {ka:e} and k_b = {kb:e}, is {k:e} in f64, not a positive \
+                     finite number",
+                    m.name, o.name
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Every parameter a declared effect needs is set and within its bounds;
@@ -305,8 +331,16 @@ fn add_particles(
     let props = MassProperties::of(&mesh, world.materials[mat].density);
     let local = mesh.translated(-props.centroid);
     let inv_inertia = props.inertia.inverse();
-    if !inv_inertia.is_finite() {
-        return ctx.err(span, "particle shape has a singular inertia tensor");
+    let density = world.materials[mat].density;
+    if !(props.mass.is_normal() && props.inertia.is_finite() && inv_inertia.is_finite()) {
+        return ctx.err(
+            span,
+            format!(
+                "the particle's mass ({:e} kg) and inertia are not finite, non-zero f64 \
+                 numbers at this size and density ({density:e} kg/m^3)",
+                props.mass
+            ),
+        );
     }
     let radius = local
         .vertices
@@ -333,6 +367,12 @@ fn add_particles(
         radius,
         local.triangles.len(),
     )?;
+    let resolution = if halo > 0.0 { halo } else { thickness };
+    let far = positions
+        .iter()
+        .map(|p| DVec3::from_array(*p).abs().max_element())
+        .fold(0.0, f64::max);
+    check_resolution(ctx, span.clone(), far + radius, resolution)?;
     if bodies.census.bodies() + positions.len() > MAX_PARTICLES {
         return ctx.err(
             span,
@@ -511,8 +551,16 @@ fn add_obstacle(
     let q = o.rotation.map_or(DQuat::IDENTITY, |r| {
         crate::exp_map::exp_map(DVec3::from_array(r))
     });
-    world.shapes.push(mesh);
     let x = DVec3::from_array(o.position);
+    let reach = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
+    let halo = world.materials[mat].halo.unwrap_or(0.0);
+    let resolution = if halo > 0.0 {
+        halo
+    } else {
+        smallest_extent(&mesh)
+    };
+    check_resolution(ctx, span.clone(), x.abs().max_element() + reach, resolution)?;
+    world.shapes.push(mesh);
     let drive = drive(ctx, span.clone(), o, (x, q), walls_move)?;
     if let Some(d) = &drive {
         let thinnest = bodies
@@ -842,7 +890,7 @@ fn stiffest_law(materials: &[Material], census: &Census) -> (f64, f64) {
     for i in (0..materials.len()).filter(|&i| used_by_particles[i]) {
         for j in (0..materials.len()).filter(|&j| used[j]) {
             let (ki, kj) = (stiffness(i), stiffness(j));
-            k_max = k_max.max(ki * kj / (ki + kj));
+            k_max = k_max.max(in_series(ki, kj));
         }
     }
     let zeta = materials

@@ -3,7 +3,9 @@
 use super::spec::{PlacementSpec, ShapeSpec};
 use super::{positive, Ctx, SceneError, MAX_PARTICLES};
 use crate::body::Body;
-use crate::mesh::{box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, tube, TriMesh};
+use crate::mesh::{
+    box_mesh, load_mesh, sphere_hull, subdivided, tetrahedron, tube, MeshError, TriMesh,
+};
 use glam::{DQuat, DVec3};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -65,6 +67,37 @@ pub(super) fn check_motion(
     Ok(())
 }
 
+/// How many times the rounding of a body's coordinates its halo must be.
+const HALO_IN_ROUNDINGS: f64 = 1024.0;
+
+/// A body's points are rounded to the spacing of f64 at their distance
+/// from the origin (a part in 2⁵² of it). Placed so far out that this
+/// rounding is more than 1/[`HALO_IN_ROUNDINGS`] of its halo, within which
+/// its contacts act and their depths are measured, the body's contacts
+/// would be decided by rounding: refused, naming how far is too far. `far`:
+/// the largest coordinate of any of its points; `halo`: its halo, or its
+/// thickness when it has none.
+pub(super) fn check_resolution(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    far: f64,
+    halo: f64,
+) -> Result<(), SceneError> {
+    let rounding = far.next_up() - far;
+    if rounding * HALO_IN_ROUNDINGS <= halo {
+        return Ok(());
+    }
+    ctx.err(
+        span,
+        format!(
+            "a body reaches {far:e} m from the origin, where f64 rounds coordinates to \
+             {rounding:e} m: more than 1/{HALO_IN_ROUNDINGS} of its halo ({halo:e} m), so \
+             rounding would decide its contacts; move the scene nearer the origin \
+             (geometry is exact relative to the scene's size, not its distance)"
+        ),
+    )
+}
+
 pub(super) fn make_shape(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
@@ -93,7 +126,7 @@ pub(super) fn make_shape(
                     ),
                 );
             }
-            Ok(sphere_hull(*triangles, r, *seed))
+            built(ctx, span, sphere_hull(*triangles, r, *seed))
         }
         ShapeSpec::Box { size, subdivide } => {
             for (k, &x) in size.iter().enumerate() {
@@ -107,10 +140,12 @@ pub(super) fn make_shape(
                     ),
                 );
             }
-            Ok(subdivided(&box_mesh(DVec3::from_array(*size)), *subdivide))
+            let mesh = box_mesh(DVec3::from_array(*size)).and_then(|b| subdivided(&b, *subdivide));
+            built(ctx, span, mesh)
         }
         ShapeSpec::Tetrahedron { radius } => {
-            Ok(tetrahedron(positive(ctx, span, "shape.radius", *radius)?))
+            let r = positive(ctx, span.clone(), "shape.radius", *radius)?;
+            built(ctx, span, tetrahedron(r))
         }
         ShapeSpec::Tube {
             inner_radius,
@@ -134,7 +169,7 @@ pub(super) fn make_shape(
                     ),
                 );
             }
-            Ok(tube(r, r1, t, l, *segments))
+            built(ctx, span, tube(r, r1, t, l, *segments))
         }
         ShapeSpec::Mesh { file, scale } => {
             let path = if file.is_absolute() {
@@ -143,11 +178,31 @@ pub(super) fn make_shape(
                 ctx.dir.join(file)
             };
             let s = positive(ctx, span.clone(), "shape.scale", *scale)?;
-            load_mesh(&path)
-                .map(|m| m.scaled(s))
-                .or_else(|e| ctx.err(span, e.to_string()))
+            let mesh = load_mesh(&path).or_else(|e| ctx.err(span.clone(), e.to_string()))?;
+            // Scaled, the mesh is checked anew: a scale can underflow its
+            // triangles' areas or overflow its coordinates.
+            let scaled = mesh.scaled(s);
+            built(ctx, span, TriMesh::new(scaled.vertices, scaled.triangles))
         }
     }
+}
+
+/// A shape's mesh, or the error naming why f64 cannot carry it at the size
+/// the scene asks for.
+fn built(
+    ctx: &Ctx,
+    span: std::ops::Range<usize>,
+    mesh: Result<TriMesh, MeshError>,
+) -> Result<TriMesh, SceneError> {
+    mesh.or_else(|e| {
+        ctx.err(
+            span,
+            format!(
+                "the shape cannot be built in f64 at the size given (lengths too small or \
+                 too large for f64 to carry its triangles): {e}"
+            ),
+        )
+    })
 }
 
 /// Bytes a particle's triangle takes in a run, about: the world-space copy
