@@ -459,3 +459,61 @@ fn stiffnesses_whose_series_overflows_are_refused() {
         assert!(e.cause.contains("contact stiffness"), "{k}: {e}");
     }
 }
+
+/// OBJ files as exporters write them: faces with normal and texture
+/// indices (`f 1/1/1 ...`, `f 1//1 ...`), and one surface split into groups,
+/// objects or material runs. Each is the same closed mesh as the plain
+/// file: its eight corners once each, its twelve triangles, its volume.
+#[test]
+fn obj_exports_with_normals_and_groups_read_as_one_closed_mesh() {
+    let dir = std::env::temp_dir().join(format!("tridem-obj-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let b = box_mesh(DVec3::new(1.0, 2.0, 3.0)).unwrap();
+    let corners: String = b
+        .vertices
+        .iter()
+        .map(|v| format!("v {} {} {}\n", v.x, v.y, v.z))
+        .collect();
+    let extra = "vt 0 0\nvt 1 0\nvt 0 1\n";
+    let normals: String = (0..b.triangles.len())
+        .map(|k| format!("vn 0 0 {}\n", k + 1))
+        .collect();
+    // Each face: its corners (1-based), written by `corner(face, index)`,
+    // with a line before every fourth face (a group, an object, a material).
+    let write = |name: &str, corner: &dyn Fn(usize, u32) -> String, split: &str| {
+        let mut text = format!("{corners}{extra}{normals}");
+        for (k, t) in b.triangles.iter().enumerate() {
+            if k % 4 == 0 && !split.is_empty() {
+                text.push_str(&format!("{split} part{k}\n"));
+            }
+            let c: Vec<String> = t.iter().map(|&i| corner(k, i + 1)).collect();
+            text.push_str(&format!("f {}\n", c.join(" ")));
+        }
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        dem::mesh::load_mesh(&p).unwrap_or_else(|e| panic!("{name}: {e}"))
+    };
+    let plain = |_: usize, i: u32| format!("{i}");
+    let with_normal = |k: usize, i: u32| format!("{i}//{}", k + 1);
+    let with_both = |k: usize, i: u32| format!("{i}/{}/{}", i % 3 + 1, k + 1);
+    let reference = write("plain.obj", &plain, "");
+    for (name, corner, split) in [
+        (
+            "normals.obj",
+            &with_normal as &dyn Fn(usize, u32) -> String,
+            "",
+        ),
+        ("texcoords.obj", &with_both, ""),
+        ("groups.obj", &plain, "g"),
+        ("objects.obj", &plain, "o"),
+        ("objects-normals.obj", &with_normal, "o"),
+        ("materials.obj", &with_both, "usemtl"),
+    ] {
+        let m = write(name, corner, split);
+        assert_eq!(m.vertices.len(), 8, "{name}");
+        assert_eq!(m.triangles.len(), 12, "{name}");
+        assert_eq!(m.signed_volume(), reference.signed_volume(), "{name}");
+        assert!((m.signed_volume() - 6.0).abs() < 1e-12, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}

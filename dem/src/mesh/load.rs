@@ -2,6 +2,7 @@
 
 use super::{MeshError, TriMesh};
 use glam::DVec3;
+use std::collections::HashMap;
 use std::path::Path;
 
 /// Loads an OBJ or STL file (by extension) and validates it.
@@ -16,30 +17,20 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
         .map(str::to_ascii_lowercase);
     let (vertices, triangles) = match ext.as_deref() {
         Some("obj") => {
+            // Position indices only: with its texture and normal indices a
+            // corner would be a vertex per face it has a normal in, and a
+            // closed mesh exported with normals would read as open.
             let opts = tobj::LoadOptions {
                 triangulate: true,
-                single_index: true,
+                single_index: false,
                 ..Default::default()
             };
             let (models, _) = tobj::load_obj(path, &opts).map_err(|e| err(e.to_string()))?;
-            let mut v = Vec::new();
-            let mut t = Vec::new();
-            for m in models {
-                let base = v.len() as u32;
-                v.extend(
-                    m.mesh
-                        .positions
-                        .chunks_exact(3)
-                        .map(|p| DVec3::new(p[0], p[1], p[2])),
-                );
-                t.extend(
-                    m.mesh
-                        .indices
-                        .chunks_exact(3)
-                        .map(|c| [base + c[0], base + c[1], base + c[2]]),
-                );
-            }
-            (v, t)
+            merged_models(
+                models
+                    .iter()
+                    .map(|m| (&m.mesh.positions[..], &m.mesh.indices[..])),
+            )
         }
         Some("stl") => {
             let mut f = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
@@ -65,4 +56,36 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
         _ => return Err(err("unknown mesh format (use .obj or .stl)".into())),
     };
     TriMesh::new(vertices, triangles).map_err(|e| err(e.to_string()))
+}
+
+/// One mesh of an OBJ's models (its groups, objects and material runs),
+/// each given as its positions and its triangles' indices into them. Each
+/// model holds its own copy of the positions its faces use: copies of one
+/// `v` line have the same bits, and are one vertex again (in the order of
+/// their first use), so that a closed surface split into groups stays closed.
+fn merged_models<'a>(
+    models: impl Iterator<Item = (&'a [f64], &'a [u32])>,
+) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    let mut index: HashMap<[u64; 3], u32> = HashMap::new();
+    for (positions, indices) in models {
+        let ids: Vec<u32> = positions
+            .chunks_exact(3)
+            .map(|p| {
+                let key = [p[0].to_bits(), p[1].to_bits(), p[2].to_bits()];
+                *index.entry(key).or_insert_with(|| {
+                    vertices.push(DVec3::new(p[0], p[1], p[2]));
+                    (vertices.len() - 1) as u32
+                })
+            })
+            .collect();
+        let id = |i: u32| ids[i as usize];
+        triangles.extend(
+            indices
+                .chunks_exact(3)
+                .map(|c| [id(c[0]), id(c[1]), id(c[2])]),
+        );
+    }
+    (vertices, triangles)
 }
