@@ -517,3 +517,51 @@ fn obj_exports_with_normals_and_groups_read_as_one_closed_mesh() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// STL files as exporters write them: ASCII with its keywords in capitals
+/// and CRLF line ends, and binary with a header that starts with "solid"
+/// (as many CAD exporters write it). Each reads as the unit tetrahedron,
+/// of volume 1/6.
+#[test]
+fn stl_exports_in_capitals_or_with_a_solid_header_read_as_the_same_mesh() {
+    let dir = std::env::temp_dir().join(format!("tridem-stl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let v = [
+        [0.0f32; 3],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let faces = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let mut ascii = String::from("SOLID T\r\n");
+    for f in faces {
+        ascii.push_str("  FACET NORMAL 0 0 0\r\n    OUTER LOOP\r\n");
+        for i in f {
+            let [x, y, z] = v[i];
+            ascii.push_str(&format!("      VERTEX {x:E} {y:E} {z:E}\r\n"));
+        }
+        ascii.push_str("    ENDLOOP\r\n  ENDFACET\r\n");
+    }
+    ascii.push_str("ENDSOLID T\r\n");
+    let mut binary = b"solid written by a CAD program".to_vec();
+    binary.resize(80, b' ');
+    binary.extend(4u32.to_le_bytes());
+    for f in faces {
+        binary.extend([0u8; 12]);
+        for i in f {
+            binary.extend(v[i].iter().flat_map(|c| c.to_le_bytes()));
+        }
+        binary.extend([0u8; 2]);
+    }
+    for (name, bytes) in [
+        ("capitals.stl", ascii.into_bytes()),
+        ("solid-header.stl", binary),
+    ] {
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let m = dem::mesh::load_mesh(&p).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(m.vertices.len(), 4, "{name}");
+        assert!((m.signed_volume() - 1.0 / 6.0).abs() < 1e-15, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -33,8 +33,10 @@ pub fn load_mesh(path: &Path) -> Result<TriMesh, MeshError> {
             )
         }
         Some("stl") => {
-            let mut f = std::fs::File::open(path).map_err(|e| err(e.to_string()))?;
-            let s = stl_io::read_stl(&mut f).map_err(|e| err(e.to_string()))?;
+            let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
+            let mut text = std::io::Cursor::new(stl_keywords_lowercased(bytes));
+            let s = stl_io::read_stl(&mut text)
+                .map_err(|e| err(format!("not a readable STL file, ASCII or binary ({e})")))?;
             let v = s
                 .vertices
                 .iter()
@@ -88,4 +90,21 @@ fn merged_models<'a>(
         );
     }
     (vertices, triangles)
+}
+
+/// ASCII STL's keywords are lowercase by the format, but some exporters
+/// write them in capitals (`SOLID`, `FACET NORMAL`): such a file is read
+/// lowercased, its numbers unchanged. A binary file (its size that of the
+/// facet count in its header) is left as it is, whatever its header says.
+fn stl_keywords_lowercased(mut bytes: Vec<u8>) -> Vec<u8> {
+    let starts_in_capitals =
+        bytes.len() >= 5 && bytes[..5].eq_ignore_ascii_case(b"solid") && &bytes[..5] != b"solid";
+    let binary = bytes.len() >= 84 && {
+        let facets = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]);
+        bytes.len() as u64 == 84 + 50 * u64::from(facets)
+    };
+    if starts_in_capitals && !binary && bytes.is_ascii() {
+        bytes.make_ascii_lowercase();
+    }
+    bytes
 }
