@@ -565,3 +565,31 @@ fn stl_exports_in_capitals_or_with_a_solid_header_read_as_the_same_mesh() {
     }
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// A particle whose surface crosses half its thickness in one step can pass
+/// through a wall between two detections, whether it moves or spins that
+/// fast: a tetrahedron of circumradius 1 cm spinning at 1e5 rad/s sweeps
+/// 1 cm per 1e-5 s step, and is warned of; at 10 rad/s, or moving at
+/// 1 m/s, it is not.
+#[test]
+fn a_particle_spinning_through_its_thickness_in_a_step_is_warned_of() {
+    let with = |motion: &str| {
+        let text = BASE.replace(
+            "placement = { kind = \"single\", position = [0.0, 0.0, 0.0] }",
+            &format!("placement = {{ kind = \"single\", position = [0.0, 0.0, 0.0] }}\n{motion}"),
+        );
+        parse(&text).unwrap().warnings
+    };
+    let fast = with("angular_velocity = [0.0, 1e5, 0.0]");
+    assert_eq!(fast.len(), 1, "{fast:?}");
+    assert!(
+        fast[0].contains("spin") && fast[0].contains("scene.toml:17"),
+        "{fast:?}"
+    );
+    for slow in [
+        "angular_velocity = [0.0, 10.0, 0.0]",
+        "velocity = [1.0, 0.0, 0.0]",
+    ] {
+        assert!(with(slow).is_empty(), "{slow}: {:?}", with(slow));
+    }
+}

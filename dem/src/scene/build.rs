@@ -431,7 +431,7 @@ fn add_particles(
             &body,
             omega,
             dt,
-            thickness,
+            (thickness, radius),
             &mut bodies.warnings,
         )?;
         bodies.keep(id, body);

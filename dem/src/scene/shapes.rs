@@ -31,15 +31,16 @@ pub(super) fn smallest_extent(mesh: &TriMesh) -> f64 {
 
 /// A particle's initial motion must be a number the integrator can carry:
 /// its kinetic energy finite (a velocity of 1e200 m/s squares to infinity).
-/// One that crosses half its own thickness in a step can pass through a
-/// wall between two detections: warned.
+/// One whose surface crosses half its own thickness in a step, by its
+/// speed or by its spin (|ω| times `reach`, its farthest point from its
+/// centre), can pass through a wall between two detections: warned.
 pub(super) fn check_motion(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
     b: &Body,
     omega: DVec3,
     dt: f64,
-    thickness: f64,
+    (thickness, reach): (f64, f64),
     warnings: &mut Vec<String>,
 ) -> Result<(), SceneError> {
     let energy = 0.5 * b.mass * b.v.length_squared() + 0.5 * omega.dot(b.l);
@@ -54,12 +55,13 @@ pub(super) fn check_motion(
             ),
         );
     }
-    let travel = b.v.length() * dt;
+    let travel = (b.v.length() + omega.length() * reach) * dt;
     if travel > thickness / 2.0 {
         warnings.push(format!(
-            "{}:{}: a particle moves {travel:e} m in one step, more than half its thickness \
-             ({thickness:e} m): it can pass through walls and other particles between two \
-             detections; lower dt or the speed",
+            "{}:{}: a particle's surface moves up to {travel:e} m in one step (its speed, and \
+             its spin times its reach), more than half its thickness ({thickness:e} m): it can \
+             pass through walls and other particles between two detections; lower dt, the \
+             speed or the spin",
             ctx.file,
             ctx.line_of(span.start)
         ));
