@@ -27,9 +27,7 @@ impl World {
     #[inline]
     /// Per shape: the largest distance of a vertex from the body's origin.
     pub fn shape_radii(&self) -> Vec<f64> {
-        (self.shapes.iter())
-            .map(|m| m.vertices.iter().map(|v| v.length()).fold(0.0, f64::max))
-            .collect()
+        self.shapes.iter().map(TriMesh::reach).collect()
     }
 
     /// The index of the body of id `id`, if this world holds it.

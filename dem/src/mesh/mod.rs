@@ -110,6 +110,12 @@ impl TriMesh {
         }
     }
 
+    /// The largest distance of a vertex from the mesh's origin: how far any
+    /// point of a body of this shape is from the body's centre.
+    pub fn reach(&self) -> f64 {
+        self.vertices.iter().map(|v| v.length()).fold(0.0, f64::max)
+    }
+
     /// Smallest box around the vertices.
     pub fn bounds(&self) -> (DVec3, DVec3) {
         let mut lo = DVec3::splat(f64::INFINITY);

@@ -342,11 +342,7 @@ fn add_particles(
             ),
         );
     }
-    let radius = local
-        .vertices
-        .iter()
-        .map(|v| v.length())
-        .fold(0.0, f64::max);
+    let radius = local.reach();
     let thickness = smallest_extent(&local);
     let halo = world.materials[mat].halo.unwrap_or(0.0);
     if halo > thickness / 2.0 {
@@ -367,12 +363,11 @@ fn add_particles(
         radius,
         local.triangles.len(),
     )?;
-    let resolution = if halo > 0.0 { halo } else { thickness };
     let far = positions
         .iter()
         .map(|p| DVec3::from_array(*p).abs().max_element())
         .fold(0.0, f64::max);
-    check_resolution(ctx, span.clone(), far + radius, resolution)?;
+    check_resolution(ctx, span.clone(), far + radius, (halo, thickness))?;
     if bodies.census.bodies() + positions.len() > MAX_PARTICLES {
         return ctx.err(
             span,
@@ -552,14 +547,9 @@ fn add_obstacle(
         crate::exp_map::exp_map(DVec3::from_array(r))
     });
     let x = DVec3::from_array(o.position);
-    let reach = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
     let halo = world.materials[mat].halo.unwrap_or(0.0);
-    let resolution = if halo > 0.0 {
-        halo
-    } else {
-        smallest_extent(&mesh)
-    };
-    check_resolution(ctx, span.clone(), x.abs().max_element() + reach, resolution)?;
+    let far = x.abs().max_element() + mesh.reach();
+    check_resolution(ctx, span.clone(), far, (halo, smallest_extent(&mesh)))?;
     world.shapes.push(mesh);
     let drive = drive(ctx, span.clone(), o, (x, q), walls_move)?;
     if let Some(d) = &drive {
@@ -730,7 +720,7 @@ fn check_drive(
             ),
         );
     }
-    let reach = mesh.vertices.iter().map(|v| v.length()).fold(0.0, f64::max);
+    let reach = mesh.reach();
     let speed = d.velocity.largest() + d.angular_velocity.largest() * reach;
     let travel = speed * dt;
     Ok((travel > thinnest / 2.0).then(|| {

@@ -77,14 +77,15 @@ const HALO_IN_ROUNDINGS: f64 = 1024.0;
 /// rounding is more than 1/[`HALO_IN_ROUNDINGS`] of its halo, within which
 /// its contacts act and their depths are measured, the body's contacts
 /// would be decided by rounding: refused, naming how far is too far. `far`:
-/// the largest coordinate of any of its points; `halo`: its halo, or its
-/// thickness when it has none.
+/// the largest coordinate of any of its points; its halo (0: none) and its
+/// thickness, which stands for the halo when it has none.
 pub(super) fn check_resolution(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
     far: f64,
-    halo: f64,
+    (halo, thickness): (f64, f64),
 ) -> Result<(), SceneError> {
+    let halo = if halo > 0.0 { halo } else { thickness };
     let rounding = far.next_up() - far;
     if rounding * HALO_IN_ROUNDINGS <= halo {
         return Ok(());
