@@ -200,6 +200,10 @@ fn bad_insertions_are_refused_with_file_and_line() {
         good.replace("rate = 10.0,", "rate = 10.0, start = -1.0,"),
         "start",
     );
+    refused(
+        good.replace(r#"count = 5,"#, r#"count = 0,"#),
+        "count = 0 inserts no particle",
+    );
     let wall = r#"
         [[obstacles]]
         material = "m"

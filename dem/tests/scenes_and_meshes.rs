@@ -593,3 +593,71 @@ fn a_particle_spinning_through_its_thickness_in_a_step_is_warned_of() {
         assert!(with(slow).is_empty(), "{slow}: {:?}", with(slow));
     }
 }
+
+/// A placement that places no particle, or places them outside the box it
+/// names, and a rotation f64 cannot turn by, are refused at the particle's
+/// line; the same placements made sound are read.
+#[test]
+fn placements_that_place_nothing_or_outside_their_box_are_refused() {
+    let line = BASE.lines().position(|l| l == "[[particles]]").unwrap() + 1;
+    let placed = |placement: &str| {
+        let text = BASE.replace(
+            r#"placement = { kind = "single", position = [0.0, 0.0, 0.0] }"#,
+            placement,
+        );
+        parse(&text)
+    };
+    let refused = |placement: &str, cause: &str| {
+        let e = placed(placement)
+            .err()
+            .unwrap_or_else(|| panic!("accepted: {placement}"));
+        assert_eq!(e.line, line, "{e}");
+        assert!(e.cause.contains(cause), "{placement}: {e}");
+    };
+    let lattice = |count: &str| {
+        format!(
+            r#"placement = {{ kind = "lattice", count = {count}, spacing = 0.03, origin = [0.0, 0.0, 0.0] }}"#
+        )
+    };
+    refused(&lattice("[0, 2, 2]"), "along x");
+    refused(&lattice("[2, 2, 0]"), "along z");
+    assert_eq!(placed(&lattice("[1, 2, 2]")).unwrap().world.bodies.len(), 4);
+    let random = |count: usize, lo: &str, hi: &str| {
+        format!(r#"placement = {{ kind = "random", count = {count}, lo = {lo}, hi = {hi} }}"#)
+    };
+    refused(
+        &random(0, "[0.0, 0.0, 0.0]", "[1.0, 1.0, 1.0]"),
+        "count = 0",
+    );
+    // lo above hi, and a box thinner than a particle (diameter 0.02).
+    refused(&random(5, "[0.0, 0.0, 0.0]", "[-1.0, 1.0, 1.0]"), "along x");
+    refused(&random(5, "[0.0, 0.0, 0.0]", "[1.0, 0.01, 1.0]"), "along y");
+    let scene = placed(&random(5, "[0.0, 0.0, 0.0]", "[1.0, 1.0, 0.02]")).unwrap();
+    for b in &scene.world.bodies {
+        assert!(
+            b.x.z == 0.01,
+            "a flat box's particles lie in its middle: {}",
+            b.x
+        );
+    }
+    let single = r#"placement = { kind = "single", position = [0.0, 0.0, 0.0] }"#;
+    for angle in ["1e300", "1e7"] {
+        refused(
+            &format!("{single}\nrotation = [{angle}, 0.0, 0.0]"),
+            "modulo 2π",
+        );
+    }
+    // A turn by 5 rad about (0.6, 0, 0.8), as Rodrigues' formula turns y.
+    let q = placed(&format!("{single}\nrotation = [3.0, 0.0, 4.0]"))
+        .unwrap()
+        .world
+        .bodies[0]
+        .q;
+    let (k, v, angle) = (DVec3::new(0.6, 0.0, 0.8), DVec3::Y, 5.0f64);
+    let rodrigues = v * angle.cos() + k.cross(v) * angle.sin() + k * k.dot(v) * (1.0 - angle.cos());
+    assert!((q * v - rodrigues).length() < 1e-12, "{q}");
+    let wall = "\n[[obstacles]]\nmaterial = \"m\"\nshape = { kind = \"box\", size = [1.0, 1.0, 0.1] }\nposition = [0.0, 0.0, -1.0]\n";
+    let e = parse(&format!("{BASE}{wall}rotation = [0.0, 1e300, 0.0]\n")).unwrap_err();
+    assert_eq!(e.line, BASE.lines().count() + 2, "{e}");
+    assert!(e.cause.contains("modulo 2π"), "{e}");
+}

@@ -524,9 +524,29 @@ fn orientation(
         }
     };
     Ok(match p.rotation {
-        Some(r) => crate::exp_map::exp_map(DVec3::from_array(r)) * q,
+        Some(r) => turn(ctx, span, r)? * q,
         None => q,
     })
+}
+
+/// Largest angle a scene's `rotation` may give, in radians: beyond, f64
+/// rounds the angle by more than 1e-10 rad, and a turn by it is a turn by
+/// rounding (give such an angle modulo 2π).
+const MAX_ANGLE: f64 = 1e6;
+
+/// The turn by a scene's rotation vector (axis times angle, radians).
+fn turn(ctx: &Ctx, span: Range<usize>, r: [f64; 3]) -> Result<DQuat, SceneError> {
+    let angle = DVec3::from_array(r).length();
+    if !angle.is_finite() || angle > MAX_ANGLE {
+        return ctx.err(
+            span,
+            format!(
+                "rotation {r:?} turns by {angle:e} rad, more than {MAX_ANGLE:e}: give the \
+                 angle modulo 2π"
+            ),
+        );
+    }
+    Ok(crate::exp_map::exp_map(DVec3::from_array(r)))
 }
 
 /// An obstacle: its mesh in its own frame, where the scene puts it, and how
@@ -543,9 +563,10 @@ fn add_obstacle(
     let world = &mut bodies.world;
     let mat = material_index(ctx, span.clone(), world, &o.material)?;
     let mesh = make_shape(ctx, span.clone(), &o.shape)?;
-    let q = o.rotation.map_or(DQuat::IDENTITY, |r| {
-        crate::exp_map::exp_map(DVec3::from_array(r))
-    });
+    let q = match o.rotation {
+        Some(r) => turn(ctx, span.clone(), r)?,
+        None => DQuat::IDENTITY,
+    };
     let x = DVec3::from_array(o.position);
     let halo = world.materials[mat].halo.unwrap_or(0.0);
     let far = x.abs().max_element() + mesh.reach();

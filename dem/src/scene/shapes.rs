@@ -244,6 +244,9 @@ pub(super) fn placements(
             ..
         } => {
             let refuse = |why: String| ctx.err(span.clone(), format!("placement: {why}"));
+            if *count == 0 {
+                return refuse("count = 0 inserts no particle".into());
+            }
             if let Err(why) = region.check() {
                 return refuse(why);
             }
@@ -261,6 +264,13 @@ pub(super) fn placements(
             spacing,
             origin,
         } => {
+            if let Some(axis) = (0..3).find(|&k| count[k] == 0) {
+                let name = ["x", "y", "z"][axis];
+                return ctx.err(
+                    span,
+                    format!("placement.count {count:?} places no particle: give at least 1 along {name}"),
+                );
+            }
             let s = positive(ctx, span.clone(), "placement.spacing", *spacing)?;
             if s < 2.0 * radius {
                 return ctx.err(
@@ -291,6 +301,22 @@ pub(super) fn placements(
             hi,
             seed,
         } => {
+            if *count == 0 {
+                return ctx.err(span, "placement.count = 0 places no particle".to_string());
+            }
+            // A box that cannot hold one particle would put them outside it.
+            if let Some(axis) = (0..3).find(|&k| hi[k] - lo[k] < 2.0 * radius) {
+                let name = ["x", "y", "z"][axis];
+                return ctx.err(
+                    span,
+                    format!(
+                        "placement: the box from lo {lo:?} to hi {hi:?} is {:e} m wide along {name}, \
+                         less than a particle's diameter ({:e} m)",
+                        hi[axis] - lo[axis],
+                        2.0 * radius
+                    ),
+                );
+            }
             // Random sequential packing: reject positions closer than a diameter.
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(*seed);
             let mut v: Vec<[f64; 3]> = Vec::with_capacity(*count);
@@ -306,9 +332,8 @@ pub(super) fn placements(
                         ),
                     );
                 }
-                let p = [0, 1, 2].map(|k| {
-                    lo[k] + radius + (hi[k] - lo[k] - 2.0 * radius).max(0.0) * rng.random::<f64>()
-                });
+                let p = [0, 1, 2]
+                    .map(|k| lo[k] + radius + (hi[k] - lo[k] - 2.0 * radius) * rng.random::<f64>());
                 let ok = v.iter().all(|o| {
                     (0..3).map(|k| (o[k] - p[k]).powi(2)).sum::<f64>() >= (2.0 * radius).powi(2)
                 });
