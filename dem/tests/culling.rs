@@ -162,3 +162,90 @@ position = [0.0, 0.0, -0.01]
         "more contacts came within reach: {first} then {most}"
     );
 }
+
+/// A grain a millionth of a metre across near a floor a million metres
+/// across: the kernel's answers are certified to a fraction of the pair's
+/// scale, the floor's, which is here larger than the gap between a corner's
+/// distance and the reach. The triangle pairs within reach by that error
+/// still reach the feature contacts, which decide from the features' exact
+/// data: the hybrid finds the contacts brute force finds, with the same
+/// motion, at every tilt and height within the reach.
+#[test]
+fn a_tiny_grain_on_a_huge_floor_has_brute_forces_contacts() {
+    let text = |method: &str, rotation: [f64; 3]| {
+        format!(
+            r#"
+[simulation]
+dt = 1e-12
+end_time = 1e-11
+[effects]
+contact = {{}}
+rotation = {{}}
+[[materials]]
+name = "m"
+density = 1000.0
+stiffness = 1e-3
+restitution = 0.5
+halo = 2e-7
+[[particles]]
+material = "m"
+shape = {{ kind = "tetrahedron", radius = 2e-6 }}
+placement = {{ kind = "single", position = [0.3, 0.2, 0.0] }}
+rotation = {rotation:?}
+[[obstacles]]
+material = "m"
+shape = {{ kind = "box", size = [1e6, 1e6, 2.0] }}
+position = [0.0, 0.0, -1.0]
+[kernel]
+method = "{method}"
+"#
+        )
+    };
+    let (mut found, mut differ) = (0, Vec::new());
+    // An edge level with the floor (no rotation: the tetrahedron's lowest
+    // edge is horizontal), turned about the vertical; then turns about
+    // axes spread over the sphere (a golden-angle spiral).
+    let rotations = (0..8)
+        .map(|k| [0.0, 0.0, 0.4 * k as f64])
+        .chain((0..400).map(|k| {
+            let z = 1.0 - 2.0 * (k as f64 + 0.5) / 400.0;
+            let phi = k as f64 * 2.399_963_229_728_653;
+            let r = (1.0 - z * z).sqrt();
+            let angle = 0.1 + 3.0 * ((k * 7) % 31) as f64 / 31.0;
+            [r * phi.cos() * angle, r * phi.sin() * angle, z * angle]
+        }));
+    for (k, rotation) in rotations.enumerate() {
+        for height in [0.3, 0.9, 0.99, 0.999] {
+            let run = |method: &str| {
+                let mut scene = Scene::parse(&text(method, rotation), "s.toml", Path::new("."))
+                    .unwrap_or_else(|e| panic!("{e}"));
+                let body = &scene.world.bodies[0];
+                let r = glam::DMat3::from_quat(body.q);
+                let lowest = scene.world.shapes[body.shape]
+                    .vertices
+                    .iter()
+                    .map(|&v| (body.x + r * v).z)
+                    .fold(f64::INFINITY, f64::min);
+                // The lowest corner `height` reaches (4e-7) above the floor.
+                scene.world.bodies[0].x.z += height * 4e-7 - lowest;
+                let mut sim = Simulation::new(&scene);
+                sim.step();
+                let contacts = sim.last_stats().detection.contacts;
+                (contacts, common::motion_bits(&sim.world))
+            };
+            let (brute, hybrid) = (run("brute"), run("hybrid"));
+            found += brute.0;
+            if brute != hybrid {
+                differ.push((k, height, brute.0, hybrid.0));
+            }
+        }
+    }
+    assert!(
+        found >= 408 * 4,
+        "every tilt and height has a contact: {found}"
+    );
+    assert!(
+        differ.is_empty(),
+        "(tilt, height, brute, hybrid contacts): {differ:?}"
+    );
+}

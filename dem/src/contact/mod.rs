@@ -65,7 +65,9 @@ pub use since_list::ListMotion;
 pub use triangle_set::{body_triangles, BodyGroup, SetTriangle, TriangleKey, TriangleSet};
 use triangle_set::{Part, PassPairs, PassSet};
 
-use crate::distance::{distance_many_serial, Closest, Counts, Options, PenaltyStats, Triangle};
+use crate::distance::{
+    distance_many_serial, Closest, Counts, Options, PairSource, PenaltyStats, Triangle,
+};
 use crate::integrate::relative_travel_bound;
 use crate::mesh::Features;
 use crate::timing::{seconds_since, DetectionTimes};
@@ -1144,9 +1146,16 @@ impl Task {
         let found = (&self.kept[..], &self.out[..], pairs.as_slice());
         keep_near(found, memos, margin, &mut self.nearest);
         self.found.clear();
-        for (&(i, j), r) in pairs.as_slice().iter().zip(&self.out) {
+        let source = pairs.source();
+        for (k, (&(i, j), r)) in pairs.as_slice().iter().zip(&self.out).enumerate() {
             let (ka, kb) = (set.key(i as usize), set.key(j as usize));
-            if r.distance < halos[ka.body as usize] + halos[kb.body as usize] {
+            let reach = halos[ka.body as usize] + halos[kb.body as usize];
+            // A pair the kernel puts just beyond the reach may be within it
+            // by the kernel's error: the feature contacts, built from the
+            // features' exact data, decide (an extra pair adds no contact).
+            if r.distance < reach
+                || (r.distance < 2.0 * reach && r.distance < reach + pair_allowance(source.pair(k)))
+            {
                 self.found.push(TriangleContact {
                     a: ka,
                     b: kb,
@@ -1189,6 +1198,12 @@ fn kernel_allowance(union: &Bounds) -> f64 {
     let extent = (union.hi - union.lo).length();
     let far = union.lo.abs().max(union.hi.abs()).max_element();
     1e-9 * extent + 64.0 * f64::EPSILON * far
+}
+
+/// [`kernel_allowance`] for one triangle pair, within the box of its six
+/// vertices.
+fn pair_allowance((a, b): (&Triangle, &Triangle)) -> f64 {
+    kernel_allowance(&Bounds::of(a, 0.0).union(&Bounds::of(b, 0.0)))
 }
 
 /// Keeps, in the memo of each body pair of `kept`, its triangle pairs (of
