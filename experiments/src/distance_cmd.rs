@@ -49,7 +49,9 @@ pub fn run(args: &DistanceArgs) -> CliResult {
         let (p, q) = (scale(r.p, k), scale(r.q, k));
         writeln!(
             w,
-            "{},{},{},{},{},{},{},{}",
+            // Debug: the shortest digits that read back to the same f64,
+            // with an exponent far from 1 (1e300, not 301 digits).
+            "{:?},{:?},{:?},{:?},{:?},{:?},{:?},{}",
             scale(DVec3::new(r.distance, 0.0, 0.0), k).x,
             p.x,
             p.y,

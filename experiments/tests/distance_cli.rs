@@ -106,6 +106,27 @@ fn distance_reads_stdin_and_reports_bad_rows_by_line_and_field() {
     assert!(err.contains("/nonexistent/pairs.csv"), "{err}");
 }
 
+/// Numbers are printed with the fewest digits that read back to the same
+/// f64, in exponent form far from 1: two unit triangles 1e300 apart print
+/// the distance as `1e300`, not 301 digits; at 1e-300, not 300 zeros.
+#[test]
+fn distance_prints_numbers_that_read_back_in_few_digits() {
+    for s in [1e300, 1e-300, 1.0] {
+        let row = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+            .iter()
+            .map(|x| x * s)
+            .chain([0.0, 0.0, 2.0, 1.0, 0.0, 2.0, 0.0, 1.0, 2.0].map(|x| x * s))
+            .map(|x| format!("{x:?}"))
+            .collect::<Vec<_>>()
+            .join(",");
+        let (code, out, err) = tridem(&["distance", "--method", "brute"], &format!("{row}\n"));
+        assert_eq!(code, 0, "{err}");
+        let f: Vec<&str> = out.trim().split(',').collect();
+        assert_eq!(f[0].parse::<f64>().unwrap(), 2.0 * s, "{out}");
+        assert!(f[..7].iter().all(|x| x.len() <= 24), "{out}");
+    }
+}
+
 #[test]
 fn kernels_json_has_the_documented_fields() {
     let (code, out, err) = tridem(
