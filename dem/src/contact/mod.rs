@@ -1153,6 +1153,9 @@ impl Task {
             // A pair the kernel puts just beyond the reach may be within it
             // by the kernel's error: the feature contacts, built from the
             // features' exact data, decide (an extra pair adds no contact).
+            // Only pairs within twice the reach are asked, which keeps the
+            // allowance's box off the many pairs farther apart: beyond, the
+            // kernel would have to err by more than the reach.
             if r.distance < reach
                 || (r.distance < 2.0 * reach && r.distance < reach + pair_allowance(source.pair(k)))
             {

@@ -536,7 +536,8 @@ const MAX_ANGLE: f64 = 1e6;
 
 /// The turn by a scene's rotation vector (axis times angle, radians).
 fn turn(ctx: &Ctx, span: Range<usize>, r: [f64; 3]) -> Result<DQuat, SceneError> {
-    let angle = DVec3::from_array(r).length();
+    let r_vec = DVec3::from_array(r);
+    let angle = r_vec.length();
     if !angle.is_finite() || angle > MAX_ANGLE {
         return ctx.err(
             span,
@@ -546,7 +547,7 @@ fn turn(ctx: &Ctx, span: Range<usize>, r: [f64; 3]) -> Result<DQuat, SceneError>
             ),
         );
     }
-    Ok(crate::exp_map::exp_map(DVec3::from_array(r)))
+    Ok(crate::exp_map::exp_map(r_vec))
 }
 
 /// An obstacle: its mesh in its own frame, where the scene puts it, and how

@@ -212,6 +212,9 @@ fn built(
 /// and its box, per-thread copies, the broad phase's entries, the output.
 const BYTES_PER_TRIANGLE: f64 = 400.0;
 
+/// The axes' names, as messages give them.
+const AXES: [&str; 3] = ["x", "y", "z"];
+
 pub(super) fn placements(
     ctx: &Ctx,
     span: std::ops::Range<usize>,
@@ -265,7 +268,7 @@ pub(super) fn placements(
             origin,
         } => {
             if let Some(axis) = (0..3).find(|&k| count[k] == 0) {
-                let name = ["x", "y", "z"][axis];
+                let name = AXES[axis];
                 return ctx.err(
                     span,
                     format!("placement.count {count:?} places no particle: give at least 1 along {name}"),
@@ -306,7 +309,7 @@ pub(super) fn placements(
             }
             // A box that cannot hold one particle would put them outside it.
             if let Some(axis) = (0..3).find(|&k| hi[k] - lo[k] < 2.0 * radius) {
-                let name = ["x", "y", "z"][axis];
+                let name = AXES[axis];
                 return ctx.err(
                     span,
                     format!(
